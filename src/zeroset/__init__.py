@@ -1,0 +1,23 @@
+"""zeroset: triangle meshes from noisy point clouds (Hoppe's zero-set reconstruction)."""
+
+from .config import ReconstructionConfig
+from .errors import InputError, ReconstructionError, ZerosetError
+from .pipeline import Reconstruction, reconstruct
+from .types import DistanceField, Mesh, Orientation, Parameters, PointCloud, TangentPlanes
+
+__all__ = [
+    "DistanceField",
+    "InputError",
+    "Mesh",
+    "Orientation",
+    "Parameters",
+    "PointCloud",
+    "Reconstruction",
+    "ReconstructionConfig",
+    "ReconstructionError",
+    "TangentPlanes",
+    "ZerosetError",
+    "reconstruct",
+]
+
+__version__ = "0.1.0"

@@ -1,0 +1,1 @@
+"""Compiled loops. Only the stage modules import from here."""

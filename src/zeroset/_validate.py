@@ -1,0 +1,71 @@
+"""Conversion and checks at the public boundary; every stage calls these and nothing else."""
+
+from __future__ import annotations
+
+import numbers
+
+import numpy as np
+
+from .errors import InputError
+
+__all__ = ["as_faces", "as_points", "as_vector3", "positive", "require_rng"]
+
+
+def as_points(values, name: str = "points", *, min_rows: int = 1) -> np.ndarray:
+    """Return `values` as a new C-contiguous (N, 3) float64 array of finite rows."""
+    try:
+        array = np.array(values, dtype=np.float64, order="C", copy=True)
+    except (TypeError, ValueError) as exc:
+        raise TypeError(f"{name} must be an array of real numbers; got {type(values).__name__}") from exc
+    if array.ndim != 2 or array.shape[1] != 3:
+        raise InputError(f"{name} must have shape (N, 3); got {array.shape}")
+    if array.shape[0] < min_rows:
+        what = "is empty" if array.shape[0] == 0 else f"has {array.shape[0]} rows"
+        raise InputError(f"{name} {what}; at least {min_rows} are needed")
+    finite = np.isfinite(array)
+    if not finite.all():
+        bad_rows = np.flatnonzero(~finite.all(axis=1))
+        raise InputError(
+            f"{name} contain {int((~finite).sum())} non-finite values in {bad_rows.size} rows "
+            f"(first at row {int(bad_rows[0])}); drop or impute them first"
+        )
+    return array
+
+
+def as_faces(values, n_vertices: int, name: str = "faces") -> np.ndarray:
+    """Return `values` as a C-contiguous (F, 3) int64 array indexing `n_vertices` vertices."""
+    array = np.array(values, dtype=np.int64, order="C", copy=True)
+    if array.ndim != 2 or array.shape[1] != 3:
+        raise InputError(f"{name} must have shape (F, 3); got {array.shape}")
+    if array.size and (array.min() < 0 or array.max() >= n_vertices):
+        raise InputError(f"{name} index vertices outside [0, {n_vertices}); got range "
+                         f"[{array.min()}, {array.max()}]")
+    return array
+
+
+def as_vector3(value, name: str) -> np.ndarray:
+    """Return one finite 3-vector as a (3,) float64 array."""
+    array = np.asarray(value, dtype=np.float64).reshape(-1)
+    if array.shape != (3,) or not np.isfinite(array).all():
+        raise InputError(f"{name} must be three finite numbers x, y, z; got {value!r}")
+    return array
+
+
+def positive(value, name: str, *, allow_none: bool = False, integer: bool = False):
+    """Return `value` if it is a finite number > 0 (or None when allowed)."""
+    if value is None and allow_none:
+        return None
+    kind = numbers.Integral if integer else numbers.Real
+    if isinstance(value, bool) or not isinstance(value, kind) or not np.isfinite(value) or value <= 0:
+        expected = "a positive integer" if integer else "a positive number"
+        raise InputError(f"{name} must be {expected}; got {value!r}")
+    return int(value) if integer else float(value)
+
+
+def require_rng(rng) -> np.random.Generator:
+    """Return a Generator from a Generator, an integer seed or None."""
+    if isinstance(rng, np.random.Generator):
+        return rng
+    if rng is None or (isinstance(rng, numbers.Integral) and not isinstance(rng, bool)):
+        return np.random.default_rng(rng)
+    raise TypeError(f"rng must be a numpy Generator, an integer seed or None; got {type(rng).__name__}")

@@ -1,0 +1,59 @@
+"""Every knob of a reconstruction, with its default and one line of help."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, fields, replace
+
+__all__ = ["ReconstructionConfig"]
+
+
+def _opt(default, help: str, **extra):
+    """A dataclass field carrying its help text (read by the CLI)."""
+    return field(default=default, metadata={"help": help, **extra})
+
+
+@dataclass(frozen=True)
+class ReconstructionConfig:
+    """Parameters of :func:`zeroset.reconstruct`; None means "choose automatically"."""
+
+    rho_delta: float | None = _opt(
+        None, "neighbourhood radius rho+delta in data units (default: estimated)", flag="radius"
+    )
+    cube_size: float | None = _opt(None, "marching-cubes cube size (default: cube_factor x rho_delta)")
+    quantile: float = _opt(0.9, "quantile of neighbour distances that sets rho_delta")
+    radius_k: int = _opt(12, "rank of the neighbour whose distance measures the point spacing")
+    noise_factor: float = _opt(3.0, "rho_delta = spacing + noise_factor x estimated noise")
+    cube_factor: float = _opt(1.5, "cube size over rho_delta when cube_size is not given")
+    k_min: int = _opt(10, "smallest neighbourhood for a tangent plane (wider than rho_delta if needed)")
+    k_max: int = _opt(16, "largest neighbourhood for a tangent plane, the point included")
+    min_neighbours: int = _opt(4, "points with fewer others within rho_delta are outliers")
+    orient_k: int = _opt(8, "neighbours per point in the orientation graph")
+    phase1_fraction: float | None = _opt(
+        None, "share of the points the tangent planes use (default: as many as needed)"
+    )
+    sample: float | None = _opt(None, "keep this random fraction of the points, in (0, 1]")
+    voxel_size: float | None = _opt(None, "keep one point per voxel of this size")
+    crop: tuple[float, float, float, float, float, float] | None = _opt(
+        None, "keep points inside the box xmin,ymin,zmin,xmax,ymax,zmax", nargs=6
+    )
+    viewpoint: tuple[float, float, float] | None = _opt(
+        None, "sensor position x,y,z: orient normals towards it", nargs=3
+    )
+    min_component_faces: int = _opt(20, "drop mesh components with fewer faces")
+    max_hole_edges: int = _opt(6, "close boundary loops of at most this many edges (0: none)")
+    seed: int = _opt(0, "seed of every random choice")
+
+    def __post_init__(self) -> None:
+        if self.k_max <= self.min_neighbours or self.k_max < self.k_min:
+            raise ValueError(
+                f"k_max must exceed min_neighbours and be at least k_min; got k_max={self.k_max}, "
+                f"k_min={self.k_min}, min_neighbours={self.min_neighbours}"
+            )
+
+    def with_overrides(self, **overrides) -> ReconstructionConfig:
+        """Return a copy with the given fields replaced; unknown names raise TypeError."""
+        names = {f.name for f in fields(self)}
+        unknown = sorted(set(overrides) - names)
+        if unknown:
+            raise TypeError(f"unknown reconstruction parameter(s) {unknown}; known: {sorted(names)}")
+        return replace(self, **overrides)

@@ -1,0 +1,284 @@
+"""Read point clouds and write triangle meshes, choosing the format by file suffix.
+
+Each format lives in one private module; the tables below map a lower-case suffix to the
+function that handles it, as ``trimesh/exchange/load.py`` does. Every problem with a file
+raises `InputError` with a message that starts with the path. Every writer goes through a
+temporary file in the target's directory, so a failed write leaves the target untouched.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+
+import numpy as np
+
+from .._validate import as_faces, as_points
+from ..errors import InputError
+from ..types import Mesh, PointCloud
+from . import _mesh, _numpy, _ply, _text
+from ._atomic import atomic_target
+
+__all__ = ["MESH_FORMATS", "POINT_FORMATS", "read_mesh", "read_points", "write_mesh",
+           "write_points"]
+
+_POINT_READERS = {
+    ".csv": _text.read_points,
+    ".npy": _numpy.read_points,
+    ".npz": _numpy.read_points,
+    ".ply": _ply.read_points,
+    ".pts": _text.read_points,
+    ".txt": _text.read_points,
+    ".xyz": _text.read_points,
+}
+_POINT_WRITERS = {
+    ".npy": _numpy.write_points,
+    ".ply": _ply.write_points,
+    ".xyz": _text.write_points,
+}
+_MESH_READERS = {".obj": _mesh.read_mesh, ".off": _mesh.read_mesh, ".ply": _mesh.read_mesh,
+                 ".stl": _mesh.read_mesh}
+_MESH_WRITERS = {".obj": _mesh.write_obj, ".off": _mesh.write_off, ".ply": _mesh.write_ply,
+                 ".stl": _mesh.write_stl}
+
+#: Suffixes `read_points` understands.
+POINT_FORMATS: tuple[str, ...] = tuple(sorted(_POINT_READERS))
+#: Suffixes `read_mesh` and `write_mesh` understand.
+MESH_FORMATS: tuple[str, ...] = tuple(sorted(_MESH_WRITERS))
+
+
+def read_points(path: str | os.PathLike) -> PointCloud:
+    """Read a point cloud, with normals and sensor positions when the file has them.
+
+    This is the first stage of the pipeline: everything after it works on the validated
+    arrays of the returned cloud.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        A file whose lower-case suffix is in `POINT_FORMATS`:
+
+        - ``.ply``: the ``vertex`` element's ``x, y, z`` (any numeric type), ``nx, ny, nz``
+          and ``vp_x, vp_y, vp_z`` (or ``viewpoint_x, ...``); ASCII or binary.
+        - ``.xyz``, ``.txt``, ``.csv``, ``.pts``: rows ``x y z [nx ny nz]`` separated by
+          whitespace or commas, with ``#`` comments and an optional header line.
+        - ``.npy``: an (N, >=3) table, normals in columns 4-6 when there are exactly six.
+        - ``.npz``: arrays ``points`` (else the first), ``normals``, ``viewpoints``.
+
+    Returns
+    -------
+    PointCloud
+        ``points`` : (N, 3) float64; ``normals`` : (N, 3) float64 or None;
+        ``viewpoints`` : (N, 3) float64 or None; ``source`` : `path` as a string.
+
+    Raises
+    ------
+    InputError
+        If the suffix is unknown, the file is missing, unreadable or malformed, holds no
+        points, or holds non-finite values. The message starts with `path`.
+
+    See Also
+    --------
+    write_points, read_mesh
+
+    Examples
+    --------
+    >>> import numpy as np, tempfile, pathlib
+    >>> folder = pathlib.Path(tempfile.mkdtemp())
+    >>> _ = write_points(folder / "scan.xyz", np.eye(3))
+    >>> read_points(folder / "scan.xyz").points.shape
+    (3, 3)
+    """
+    target, reader = _existing(path, _POINT_READERS, "point")
+    with _about(path, "read"):
+        raw = reader(target)
+        if np.size(raw["points"]) == 0:
+            raise InputError("contains no points")
+        points = _checked(as_points, raw["points"], "points")
+        extras = {
+            name: _checked(as_points, raw[name], name)
+            for name in ("normals", "viewpoints") if raw.get(name) is not None
+        }
+        for name, values in extras.items():
+            if len(values) != len(points):
+                raise InputError(f"has {len(points)} points but {len(values)} {name}")
+    return PointCloud(points=points, source=os.fspath(path), **extras)
+
+
+def write_points(path: str | os.PathLike, points, *, normals=None) -> Path:
+    """Write points, and optionally normals, to ``.ply``, ``.xyz`` or ``.npy``.
+
+    Coordinates are stored in full float64 precision: PLY ``double`` properties, 17
+    significant digits in XYZ text, or a float64 array.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        Destination; its directory must exist. An existing file is replaced atomically.
+    points : (N, 3) array_like of float
+    normals : (N, 3) array_like of float, optional
+
+    Returns
+    -------
+    pathlib.Path
+        `path`.
+
+    Raises
+    ------
+    InputError
+        If the suffix is not writable, the directory is missing, `points` or `normals` are
+        not finite (N, 3) arrays of the same length, or the file cannot be written. The
+        message starts with `path`.
+
+    See Also
+    --------
+    read_points
+    """
+    target, writer = _writable(path, _POINT_WRITERS, "point")
+    with _about(path, "write"):
+        points = as_points(points, "points")
+        if normals is not None:
+            normals = as_points(normals, "normals")
+            if len(normals) != len(points):
+                raise InputError(f"{len(points)} points but {len(normals)} normals")
+        with atomic_target(target) as temp:
+            writer(temp, points, normals)
+    return target
+
+
+def read_mesh(path: str | os.PathLike) -> Mesh:
+    """Read a triangle mesh from ``.ply``, ``.obj``, ``.off`` or ``.stl``.
+
+    Vertex order is kept as stored. STL, which repeats corners per triangle, has identical
+    corners merged into shared vertices in order of first appearance.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        A file whose lower-case suffix is in `MESH_FORMATS`.
+
+    Returns
+    -------
+    Mesh
+        ``vertices`` : (M, 3) float64; ``faces`` : (F, 3) int64.
+
+    Raises
+    ------
+    InputError
+        If the suffix is unknown, the file is missing or malformed, has no triangles, or
+        has non-finite vertices or out-of-range faces. The message starts with `path`.
+
+    See Also
+    --------
+    write_mesh
+    """
+    target, reader = _existing(path, _MESH_READERS, "mesh")
+    with _about(path, "read"):
+        vertices, faces = reader(target)
+        vertices = _checked(as_points, vertices, "vertices")
+        faces = _checked(as_faces, faces, len(vertices))
+    return Mesh(vertices=vertices, faces=faces)
+
+
+def write_mesh(path: str | os.PathLike, mesh, *, binary: bool = True) -> Path:
+    """Write a triangle mesh, choosing the format from the suffix.
+
+    This is the last stage of the pipeline. Vertices and faces are written as given: nothing
+    is merged, dropped or reordered.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        Destination with a suffix in `MESH_FORMATS`; its directory must exist. An existing
+        file is replaced atomically.
+    mesh : Mesh
+        Or any object with ``vertices`` (M, 3) and ``faces`` (F, 3) attributes, F >= 1.
+    binary : bool, default True
+        PLY and STL: binary when True, ASCII otherwise. OBJ and OFF are always text.
+
+    Returns
+    -------
+    pathlib.Path
+        `path`.
+
+    Raises
+    ------
+    TypeError
+        If `mesh` has no ``vertices`` and ``faces``.
+    InputError
+        If the suffix is unknown, the directory is missing, the mesh has no faces or invalid
+        arrays, or the file cannot be written. The message starts with `path`.
+
+    See Also
+    --------
+    read_mesh
+
+    Notes
+    -----
+    PLY stores ``double`` coordinates, so coordinates near 6e6 keep better than 1e-6
+    precision. OBJ and OFF store 12 decimals. Binary STL is float32 by definition (about
+    7 significant digits); ASCII STL keeps float64.
+    """
+    target, writer = _writable(path, _MESH_WRITERS, "mesh")
+    if not (hasattr(mesh, "vertices") and hasattr(mesh, "faces")):
+        raise TypeError(f"mesh must have vertices and faces (a zeroset Mesh); "
+                        f"got {type(mesh).__name__}")
+    with _about(path, "write"):
+        vertices = as_points(mesh.vertices, "mesh vertices")
+        faces = as_faces(mesh.faces, len(vertices), "mesh faces")
+        if len(faces) == 0:
+            raise InputError("mesh has no faces; nothing to write")
+        with atomic_target(target) as temp:
+            writer(temp, vertices, faces, binary=bool(binary))
+    return target
+
+
+def _lookup(path: str | os.PathLike, table: dict, kind: str):
+    """Return `path` as a Path and the table entry for its lower-case suffix."""
+    target = Path(path)
+    suffix = target.suffix.lower()
+    if suffix not in table:
+        found = f"unknown {kind} format {suffix!r}" if suffix else "has no suffix"
+        raise InputError(f"{os.fspath(path)}: {found}; supported: {', '.join(sorted(table))}")
+    return target, table[suffix]
+
+
+def _existing(path: str | os.PathLike, table: dict, kind: str):
+    """Check that `path` has a known suffix and is an existing regular file."""
+    target, function = _lookup(path, table, kind)
+    if not target.exists():
+        raise InputError(f"{os.fspath(path)}: no such file")
+    if target.is_dir():
+        raise InputError(f"{os.fspath(path)}: is a directory, not a {kind} file")
+    return target, function
+
+
+def _writable(path: str | os.PathLike, table: dict, kind: str):
+    """Check that `path` has a known suffix, an existing directory and is not a directory."""
+    target, function = _lookup(path, table, kind)
+    if not target.parent.is_dir():
+        raise InputError(f"{os.fspath(path)}: no such directory {str(target.parent)!r}")
+    if target.is_dir():
+        raise InputError(f"{os.fspath(path)}: is a directory")
+    return target, function
+
+
+def _checked(check, values, *args):
+    """Run a `_validate` check, turning its TypeError about file content into InputError."""
+    try:
+        return check(values, *args)
+    except TypeError as exc:
+        raise InputError(str(exc)) from exc
+
+
+@contextmanager
+def _about(path: str | os.PathLike, verb: str) -> Iterator[None]:
+    """Prefix InputError messages with `path` and turn OSError into InputError."""
+    try:
+        yield
+    except InputError as exc:
+        raise InputError(f"{os.fspath(path)}: {exc}") from exc
+    except OSError as exc:
+        raise InputError(f"{os.fspath(path)}: cannot {verb} ({exc.strerror or exc})") from exc

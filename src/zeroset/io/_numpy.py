@@ -1,0 +1,93 @@
+"""NumPy ``.npy`` tables and ``.npz`` archives of points."""
+
+from __future__ import annotations
+
+import zipfile
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError
+
+__all__ = ["read_points", "write_points"]
+
+_MAGIC = (b"\x93NUMPY", b"PK\x03\x04", b"PK\x05\x06")  # .npy, .npz, empty .npz
+
+
+def read_points(path: Path) -> dict[str, np.ndarray | None]:
+    """Read points from a ``.npy`` table or a ``.npz`` archive.
+
+    A table's first three columns are the points; a table with exactly six columns also
+    carries normals in columns 4-6. An archive's points are its ``points`` array (else its
+    first array), read as a table; its ``normals`` and ``viewpoints`` arrays, when present,
+    override or add to that. A single (3,) viewpoint is repeated for every point.
+
+    Parameters
+    ----------
+    path : pathlib.Path
+        A ``.npy`` or ``.npz`` file; the content decides which, not the suffix.
+
+    Returns
+    -------
+    dict
+        ``points`` : array, (N, 3) when well formed; ``normals`` and ``viewpoints`` : array or
+        None. Shapes, dtypes and values are checked by the caller.
+
+    Raises
+    ------
+    InputError
+        If the file is neither format, is truncated, holds pickled objects or is an empty
+        archive. Messages carry no path prefix.
+    """
+    with open(path, "rb") as stream:
+        magic = stream.read(6)
+    if not magic.startswith(_MAGIC):
+        raise InputError("not a valid NPY or NPZ file (unrecognised leading bytes)")
+    try:
+        loaded = np.load(path, allow_pickle=False)
+        if isinstance(loaded, np.ndarray):
+            return _from_table(loaded)
+        with loaded as archive:
+            return _from_archive(archive)
+    except InputError:
+        raise
+    except (ValueError, EOFError, OSError, zipfile.BadZipFile) as exc:
+        raise InputError(f"not a valid NPY or NPZ file ({exc})") from exc
+
+
+def _from_table(table: np.ndarray) -> dict[str, np.ndarray | None]:
+    """Split an (N, >=3) table into points and, for six columns, normals."""
+    if table.ndim != 2 or table.shape[1] < 3:
+        return {"points": table, "normals": None}  # the caller reports the shape
+    return {"points": table[:, :3], "normals": table[:, 3:6] if table.shape[1] == 6 else None}
+
+
+def _from_archive(archive) -> dict[str, np.ndarray | None]:
+    """Pick points, normals and viewpoints out of an open NpzFile."""
+    if not archive.files:
+        raise InputError("contains no arrays")
+    key = "points" if "points" in archive.files else archive.files[0]
+    cloud = _from_table(archive[key])
+    if "normals" in archive.files:
+        cloud["normals"] = archive["normals"]
+    if "viewpoints" in archive.files:
+        viewpoints = archive["viewpoints"]
+        if viewpoints.shape == (3,):
+            viewpoints = np.tile(viewpoints, (len(cloud["points"]), 1))
+        cloud["viewpoints"] = viewpoints
+    return cloud
+
+
+def write_points(path: Path, points: np.ndarray, normals: np.ndarray | None) -> None:
+    """Write an (N, 3) table, or (N, 6) with normals, as ``.npy``.
+
+    Parameters
+    ----------
+    path : pathlib.Path
+        Destination, overwritten.
+    points : (N, 3) float64
+    normals : (N, 3) float64 or None
+    """
+    table = points if normals is None else np.hstack([points, normals])
+    with open(path, "wb") as stream:
+        np.save(stream, table, allow_pickle=False)

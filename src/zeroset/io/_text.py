@@ -1,0 +1,148 @@
+"""Delimited text points (XYZ, TXT, CSV, PTS) in and out through numpy."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError
+
+__all__ = ["read_points", "write_points"]
+
+_ENCODING = "utf-8-sig"
+
+
+@dataclass(frozen=True)
+class _Layout:
+    """How a text file's data is laid out, found from its first lines."""
+
+    delimiter: str | None  # "," or None for runs of whitespace
+    skiprows: int  # file lines before the data, header and comments included
+    columns: int  # fields on the first data line
+    normals: bool  # columns 4-6 hold nx, ny, nz
+    first_line: int  # 1-based line number of the first data line
+
+    @property
+    def used(self) -> int:
+        """Number of leading columns read."""
+        return 6 if self.normals else 3
+
+
+def read_points(path: Path) -> dict[str, np.ndarray | None]:
+    """Read ``x y z [nx ny nz]`` rows from a whitespace- or comma-separated text file.
+
+    The delimiter is a comma if the first data line has one, else whitespace. ``#`` starts a
+    comment. One leading line that is not all numbers is a header; one leading line with a
+    single number is a point count (PTS) and is skipped too. Only the first three columns are
+    read, unless the first data line has exactly six: then columns 4-6 are normals, except
+    when a header names them otherwise (``x,y,z,r,g,b``).
+
+    Parameters
+    ----------
+    path : pathlib.Path
+        A UTF-8 text file.
+
+    Returns
+    -------
+    dict
+        ``points`` : (N, 3) float64 (N may be 0); ``normals`` : (N, 3) float64 or None.
+
+    Raises
+    ------
+    InputError
+        If the file is not UTF-8 text, a data line has fewer than three fields (six in a file
+        with normals), or a field is not a number. Messages carry no path prefix and
+        name the 1-based file line.
+    """
+    try:
+        layout = _sniff(path)
+        if layout is None:
+            return {"points": np.zeros((0, 3)), "normals": None}
+        if layout.columns < 3:
+            raise InputError(f"line {layout.first_line} has {_columns(layout.columns)}; "
+                             "expected at least 3")
+        try:
+            table = np.loadtxt(
+                path, dtype=np.float64, comments="#", delimiter=layout.delimiter,
+                skiprows=layout.skiprows, usecols=range(layout.used), ndmin=2, encoding=_ENCODING,
+            )
+        except ValueError as exc:
+            raise InputError(_diagnose(path, layout) or f"cannot parse ({exc})") from exc
+    except UnicodeDecodeError as exc:
+        raise InputError(f"not a UTF-8 text file ({exc.reason} at byte {exc.start})") from exc
+    normals = table[:, 3:6] if layout.normals else None
+    return {"points": table[:, :3], "normals": normals}
+
+
+def _sniff(path: Path) -> _Layout | None:
+    """Find the delimiter, header and column count from the first lines; None if no data."""
+    skiprows = 0
+    header: list[str] | None = None
+    with open(path, encoding=_ENCODING) as stream:
+        for number, line in enumerate(stream, start=1):  # stops at the first data line
+            text = line.split("#", 1)[0].strip()
+            if not text:
+                continue
+            delimiter = "," if "," in text else None
+            fields = _split(text, delimiter)
+            if skiprows == 0 and (not _numeric(fields) or len(fields) == 1):
+                skiprows, header = number, fields if not _numeric(fields) else None
+                continue
+            normals = len(fields) == 6 and (
+                header is None or all(name.lower().startswith("n") for name in header[3:6])
+            )
+            return _Layout(delimiter, number - 1, len(fields), normals, number)
+    return None
+
+
+def _diagnose(path: Path, layout: _Layout) -> str | None:
+    """Describe the first malformed data line (runs only after numpy has failed)."""
+    with open(path, encoding=_ENCODING) as stream:
+        for number, line in enumerate(stream, start=1):
+            text = line.split("#", 1)[0].strip()
+            if number <= layout.skiprows or not text:
+                continue
+            fields = _split(text, layout.delimiter)
+            if len(fields) < layout.used:
+                return f"line {number} has {_columns(len(fields))}; expected at least {layout.used}"
+            bad = [field for field in fields[: layout.used] if not _numeric([field])]
+            if bad:
+                return f"line {number}: cannot read {bad[0]!r} as a number"
+    return None
+
+
+def _columns(count: int) -> str:
+    """Return "1 column" or "n columns"."""
+    return f"{count} column{'' if count == 1 else 's'}"
+
+
+def _split(text: str, delimiter: str | None) -> list[str]:
+    """Split one line into stripped fields, ignoring a trailing comma."""
+    if delimiter is not None:
+        text = text.rstrip(delimiter)
+    return [field.strip() for field in text.split(delimiter)]
+
+
+def _numeric(fields: list[str]) -> bool:
+    """Return whether every field parses as a float."""
+    try:
+        [float(field) for field in fields]
+    except ValueError:
+        return False
+    return True
+
+
+def write_points(path: Path, points: np.ndarray, normals: np.ndarray | None) -> None:
+    """Write ``x y z [nx ny nz]`` rows, space separated, with round-trip precision.
+
+    Parameters
+    ----------
+    path : pathlib.Path
+        Destination, overwritten.
+    points : (N, 3) float64
+    normals : (N, 3) float64 or None
+    """
+    table = points if normals is None else np.hstack([points, normals])
+    np.savetxt(path, table, fmt="%.17g", delimiter=" ", encoding="utf-8")

@@ -1,0 +1,232 @@
+"""The phase-1 pipeline: prepare, estimate parameters, tangent planes, orient, distance, contour."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from . import topology
+from ._progress import Stages
+from ._validate import as_points
+from .config import ReconstructionConfig
+from .contour import marching_cubes
+from .distance import signed_distance
+from .errors import InputError, ReconstructionError
+from .neighbours import knn, restrict, spatial_order
+from .normals import tangent_planes
+from .orientation import orient_normals
+from .parameters import estimate_parameters
+from .prepare import crop, drop_outliers, random_sample, voxel_sample
+from .repair import fill_small_holes, remove_small_components, split_nonmanifold_vertices
+from .types import DistanceField, Mesh, Orientation, Parameters, TangentPlanes
+
+__all__ = ["Reconstruction", "reconstruct"]
+
+STAGES = ("prepare", "parameters", "neighbours", "outliers", "tangent planes", "orientation",
+          "signed distance", "contour")
+
+
+@dataclass(frozen=True, eq=False)
+class Reconstruction:
+    """Everything a reconstruction produced.
+
+    Intermediate arrays (`points`, `planes`, `orientation`, `field`) are in the local frame
+    ``original = local + offset``; `mesh` is in the original frame.
+
+    Attributes
+    ----------
+    mesh : Mesh
+        The reconstructed surface, in the input's coordinates.
+    offset : (3,) float64
+        Origin of the local frame in input coordinates.
+    points : (N, 3) float64
+        The points the tangent planes were fitted to (after preparation, phase-1 sampling
+        and outlier removal), in the local frame.
+    parameters : Parameters
+    planes : TangentPlanes
+    orientation : Orientation
+    field : DistanceField
+    config : ReconstructionConfig
+    stats : dict
+        Counts: points in and removed by each step, components, grid, mesh.
+    timings : dict
+        Wall-clock seconds per stage.
+    """
+
+    mesh: Mesh
+    offset: np.ndarray
+    points: np.ndarray
+    parameters: Parameters
+    planes: TangentPlanes
+    orientation: Orientation
+    field: DistanceField
+    config: ReconstructionConfig
+    stats: dict = field(default_factory=dict)
+    timings: dict = field(default_factory=dict)
+
+    @property
+    def normals(self) -> np.ndarray:
+        """(N, 3) oriented unit normals of `points`."""
+        return self.orientation.normals
+
+
+def reconstruct(
+    points, config: ReconstructionConfig | None = None, *, viewpoints=None, progress: bool = False,
+    **overrides,
+) -> Reconstruction:
+    """Reconstruct a triangle mesh from a point cloud (Hoppe et al. 1992).
+
+    Parameters
+    ----------
+    points : (N, 3) array_like of float
+    config : ReconstructionConfig, optional
+        All parameters; fields may also be given as keywords (``rho_delta=0.02``).
+    viewpoints : (N, 3) array_like of float, optional
+        Sensor position of every point; normals are oriented towards it.
+    progress : bool
+        Show a progress bar when stderr is a terminal.
+
+    Returns
+    -------
+    Reconstruction
+        The mesh, every intermediate, the parameters chosen, counts and timings.
+
+    Raises
+    ------
+    InputError
+        Bad points or options: non-finite values, too few points, collinear points.
+    ReconstructionError
+        When the data cannot support a surface with these parameters.
+
+    Examples
+    --------
+    >>> from zeroset.synthetic import sample_sphere
+    >>> result = reconstruct(sample_sphere(3000, rng=0).points)
+    >>> len(topology.boundary_loops(result.mesh.faces))
+    0
+    """
+    config = (config or ReconstructionConfig()).with_overrides(**overrides)
+    points = as_points(points)
+    if viewpoints is not None:
+        viewpoints = as_points(viewpoints, "viewpoints")
+        if viewpoints.shape != points.shape:
+            raise InputError(f"viewpoints must match points {points.shape}; got {viewpoints.shape}")
+    stats: dict = {"input_points": points.shape[0]}
+    stages = Stages(STAGES, show=progress)
+    try:
+        with stages.stage("prepare"):
+            rows = _prepare(points, config, stats)
+            offset = (points[rows].min(axis=0) + points[rows].max(axis=0)) / 2.0
+            local = points[rows] - offset
+            if viewpoints is not None:
+                viewpoints = viewpoints[rows] - offset
+            elif config.viewpoint is not None:
+                viewpoints = np.asarray(config.viewpoint, dtype=np.float64) - offset
+            _check_spread(local)
+        with stages.stage("parameters"):
+            parameters = estimate_parameters(
+                local, k=config.radius_k, quantile=config.quantile,
+                noise_factor=config.noise_factor, cube_factor=config.cube_factor,
+                k_max=config.k_max, rho_delta=config.rho_delta, cube_size=config.cube_size,
+                phase1_fraction=config.phase1_fraction, min_neighbours=config.min_neighbours,
+                rng=config.seed,
+            )
+        with stages.stage("neighbours"):
+            phase1 = np.arange(local.shape[0])
+            if parameters.phase1_fraction < 1.0:
+                phase1 = random_sample(phase1.size, parameters.phase1_fraction, rng=config.seed)
+            neighbours = knn(local[phase1], config.k_max)
+        with stages.stage("outliers"):
+            keep = drop_outliers(neighbours, parameters.rho_delta, parameters.min_neighbours)
+            stats["outliers"] = int(np.count_nonzero(~keep))
+            phase1, neighbours = phase1[keep], restrict(neighbours, keep)
+            if viewpoints is not None and viewpoints.ndim == 2:
+                viewpoints = viewpoints[phase1]
+            stats["phase1_points"] = phase1.size
+            if phase1.size < config.k_max:
+                raise ReconstructionError(
+                    f"only {phase1.size} points are left after removing {stats['outliers']} "
+                    f"outliers (fewer than {parameters.min_neighbours} neighbours within "
+                    f"rho_delta={parameters.rho_delta:.4g}); increase rho_delta"
+                )
+        with stages.stage("tangent planes"):
+            planes = tangent_planes(local[phase1], radius=parameters.rho_delta, k_min=config.k_min,
+                                    k_max=config.k_max,
+                                    neighbours=neighbours)
+        with stages.stage("orientation"):
+            orientation = orient_normals(
+                planes.centroids, planes.normals, k=config.orient_k,
+                max_edge=2.0 * parameters.rho_delta, neighbours=neighbours, viewpoints=viewpoints,
+            )
+            stats["orientation_components"] = orientation.n_components
+        with stages.stage("signed distance"):
+            field_ = signed_distance(local, planes.centroids, orientation.normals,
+                                     cube_size=parameters.cube_size, radius=parameters.rho_delta)
+            stats["grid_vertices"] = int(field_.values.size)
+            stats["undefined_grid_vertices"] = int(np.count_nonzero(np.isnan(field_.values)))
+        with stages.stage("contour"):
+            mesh = marching_cubes(field_)
+            mesh, stats["bowtie_vertices_split"] = split_nonmanifold_vertices(mesh)
+            mesh, stats["small_holes_filled"] = fill_small_holes(mesh, config.max_hole_edges)
+            mesh, stats["small_components_dropped"] = remove_small_components(
+                mesh, config.min_component_faces)
+            if mesh.n_faces == 0:
+                raise ReconstructionError(
+                    f"no surface: no cube of size {parameters.cube_size:.4g} has eight defined "
+                    f"corners with a sign change; rho_delta={parameters.rho_delta:.4g} may be "
+                    "too small for the point spacing"
+                )
+    finally:
+        stages.close()
+    mesh = Mesh(vertices=mesh.vertices + offset, faces=mesh.faces)
+    stats.update(_mesh_stats(mesh))
+    return Reconstruction(
+        mesh=mesh, offset=offset, points=local[phase1], parameters=parameters, planes=planes,
+        orientation=orientation, field=field_, config=config, stats=stats,
+        timings=dict(stages.timings),
+    )
+
+
+def _prepare(points: np.ndarray, config: ReconstructionConfig, stats: dict) -> np.ndarray:
+    """Row indices of `points` kept by crop, random and voxel sampling, in spatial order."""
+    rows = np.arange(points.shape[0])
+    if config.crop is not None:
+        rows = rows[crop(points, config.crop[:3], config.crop[3:])]
+        stats["cropped"] = points.shape[0] - rows.size
+    if config.sample is not None:
+        before = rows.size
+        rows = rows[random_sample(rows.size, config.sample, rng=config.seed)]
+        stats["sampled_out"] = before - rows.size
+    if config.voxel_size is not None:
+        before = rows.size
+        rows = rows[voxel_sample(points[rows], config.voxel_size)]
+        stats["voxel_merged"] = before - rows.size
+    needed = config.k_max
+    if rows.size < needed:
+        raise InputError(
+            f"{rows.size} points left after preparation; a neighbourhood needs at least {needed}"
+        )
+    return rows[spatial_order(points[rows])]
+
+
+def _check_spread(local: np.ndarray) -> None:
+    """Reject clouds whose points coincide or lie on one line: no surface can pass through them."""
+    step = max(1, local.shape[0] // 100_000)
+    sample = local[::step]
+    singular = np.linalg.svd(sample - sample.mean(axis=0), compute_uv=False)
+    if singular[0] == 0.0:
+        raise InputError("all points coincide; no surface can be reconstructed")
+    if singular[1] <= 1e-9 * singular[0]:
+        raise InputError("the points are collinear; no surface can be reconstructed")
+
+
+def _mesh_stats(mesh: Mesh) -> dict:
+    """Counts that describe a mesh: vertices, faces, boundary loops, Euler characteristic."""
+    return {
+        "vertices": mesh.n_vertices,
+        "faces": mesh.n_faces,
+        "boundary_loops": len(topology.boundary_loops(mesh.faces)),
+        "mesh_components": topology.face_components(mesh.faces, mesh.n_vertices)[0],
+        "euler_characteristic": topology.euler_characteristic(mesh),
+    }

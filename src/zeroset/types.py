@@ -1,0 +1,201 @@
+"""Frozen result objects passed between the pipeline stages.
+
+Every array field is made read-only on construction; take ``.copy()`` to edit.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, fields
+
+import numpy as np
+
+__all__ = [
+    "DistanceField",
+    "Mesh",
+    "Neighbourhoods",
+    "Orientation",
+    "Parameters",
+    "PointCloud",
+    "TangentPlanes",
+]
+
+
+class _Frozen:
+    """Mixin: mark every ndarray field read-only after construction."""
+
+    def __post_init__(self) -> None:
+        for f in fields(self):  # type: ignore[arg-type]
+            value = getattr(self, f.name)
+            if isinstance(value, np.ndarray):
+                value.flags.writeable = False
+
+
+@dataclass(frozen=True, eq=False)
+class PointCloud(_Frozen):
+    """Points read from a file, with whatever per-point data the file carried.
+
+    Attributes
+    ----------
+    points : (N, 3) float64
+    normals : (N, 3) float64 or None
+    viewpoints : (N, 3) float64 or None
+        Sensor position for every point, when the file carries one.
+    source : str or None
+        The file the cloud was read from.
+    """
+
+    points: np.ndarray
+    normals: np.ndarray | None = None
+    viewpoints: np.ndarray | None = None
+    source: str | None = None
+
+
+@dataclass(frozen=True, eq=False)
+class Neighbourhoods(_Frozen):
+    """The k nearest points of every point, itself first.
+
+    Attributes
+    ----------
+    indices : (N, k) int64
+    distances : (N, k) float64, ascending along each row
+    """
+
+    indices: np.ndarray
+    distances: np.ndarray
+
+    @property
+    def k(self) -> int:
+        """Number of neighbours per point, the point itself included."""
+        return self.indices.shape[1]
+
+
+@dataclass(frozen=True)
+class Parameters:
+    """Scale parameters of a reconstruction and how each was chosen.
+
+    Attributes
+    ----------
+    rho_delta : float
+        Neighbourhood radius rho+delta (Hoppe 1992, §3.2), in data units.
+    cube_size : float
+        Edge length of the contouring grid's cubes, in data units.
+    min_neighbours : int
+        A point with fewer other points within `rho_delta` is an outlier.
+    spacing : float
+        Sampling density rho: a quantile of the distance to the k-th neighbour.
+    noise : float
+        Noise level sigma: median RMS distance of small neighbourhoods from their plane.
+    phase1_fraction : float
+        Share of the points the tangent planes are computed from, in (0, 1].
+    notes : tuple of str
+        One line per parameter: its value and where it came from.
+    """
+
+    rho_delta: float
+    cube_size: float
+    min_neighbours: int
+    spacing: float
+    noise: float
+    phase1_fraction: float = 1.0
+    notes: tuple[str, ...] = field(default=())
+
+
+@dataclass(frozen=True, eq=False)
+class TangentPlanes(_Frozen):
+    """Tangent plane of every point (Hoppe 1992, §3.2).
+
+    Attributes
+    ----------
+    centroids : (N, 3) float64
+        Centroid o_i of each neighbourhood.
+    normals : (N, 3) float64
+        Unit normal n_i (eigenvector of the smallest covariance eigenvalue), not yet oriented.
+    eigenvalues : (N, 3) float64
+        Covariance eigenvalues, ascending, in squared data units.
+    neighbour_count : (N,) int64
+        Points in each neighbourhood, the point itself included.
+    """
+
+    centroids: np.ndarray
+    normals: np.ndarray
+    eigenvalues: np.ndarray
+    neighbour_count: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class Orientation(_Frozen):
+    """Consistently oriented normals.
+
+    Attributes
+    ----------
+    normals : (N, 3) float64
+        Oriented unit normals.
+    flipped : (N,) bool
+        Which input normals were negated.
+    component : (N,) int64
+        Connected component of the orientation graph each point belongs to.
+    roots : (C,) int64
+        The point whose orientation seeded each component.
+    method : str
+        ``"mst"`` or ``"viewpoint"``.
+    """
+
+    normals: np.ndarray
+    flipped: np.ndarray
+    component: np.ndarray
+    roots: np.ndarray
+    method: str
+
+    @property
+    def n_components(self) -> int:
+        """Number of connected components of the orientation graph."""
+        return int(self.roots.size)
+
+
+@dataclass(frozen=True, eq=False)
+class DistanceField(_Frozen):
+    """Signed distance sampled on a sparse band of one global lattice.
+
+    Grid vertex ``(i, j, k)`` lies at ``origin + cube_size * (i, j, k)``.
+
+    Attributes
+    ----------
+    vertices_ijk : (V, 3) int64
+        Lattice indices of the evaluated grid vertices, sorted by key.
+    values : (V,) float64
+        Signed distance at each vertex in data units; NaN where undefined.
+    origin : (3,) float64
+    cube_size : float
+    """
+
+    vertices_ijk: np.ndarray
+    values: np.ndarray
+    origin: np.ndarray
+    cube_size: float
+
+    @property
+    def positions(self) -> np.ndarray:
+        """(V, 3) float64 coordinates of the grid vertices."""
+        return self.origin + self.cube_size * self.vertices_ijk
+
+
+@dataclass(frozen=True, eq=False)
+class Mesh(_Frozen):
+    """Triangle mesh.
+
+    Attributes
+    ----------
+    vertices : (M, 3) float64
+    faces : (F, 3) int64, counter-clockwise seen from outside
+    """
+
+    vertices: np.ndarray
+    faces: np.ndarray
+
+    @property
+    def n_vertices(self) -> int:
+        return int(self.vertices.shape[0])
+
+    @property
+    def n_faces(self) -> int:
+        return int(self.faces.shape[0])
