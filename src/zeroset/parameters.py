@@ -12,6 +12,10 @@ from .types import Parameters
 
 __all__ = ["estimate_parameters"]
 
+#: Points, and neighbours of each, used to measure the noise level.
+NOISE_ROWS = 2_000
+NOISE_K = 64
+
 
 def estimate_parameters(
     points: np.ndarray,
@@ -95,14 +99,23 @@ def estimate_parameters(
     distances, indices = tree.query(points[rows], k=kk, workers=-1)
     kth = distances[:, -1]
     spacing = float(np.quantile(kth, quantile))
-    _, covariances, _ = centroid_covariance(points, indices.astype(np.int64), distances,
-                                            np.full(rows.size, np.inf))
-    # A plane fitted to kk points absorbs 3 of their kk degrees of freedom.
-    residual = np.linalg.eigvalsh(covariances)[:, 0].clip(min=0.0) * kk / max(kk - 3, 1)
-    noise = float(np.sqrt(np.median(residual)))
+    noise = _plane_residual(points, indices, distances, np.inf)
+    if noise_factor > 0.0:
+        # Small neighbourhoods absorb noise into the plane fit and underestimate it; widen
+        # the neighbourhood to the radius the noise calls for until the estimate settles.
+        wide_distances, wide_indices = tree.query(points[rows[:NOISE_ROWS]], k=min(NOISE_K, n),
+                                                  workers=-1)
+        for _ in range(4):
+            radius = spacing + noise_factor * noise
+            wider = _plane_residual(points, wide_indices, wide_distances, radius)
+            settled = wider <= 1.05 * noise
+            noise = max(noise, wider)
+            if settled:
+                break
     notes = [f"spacing = {spacing:.6g}: {quantile:g} quantile of the distance to the "
              f"{kk - 1}-th nearest neighbour (median {np.median(kth):.6g})",
-             f"noise = {noise:.6g}: median RMS distance of those neighbourhoods from their plane"]
+             f"noise = {noise:.6g}: median RMS distance of neighbourhoods of radius "
+             f"spacing + {noise_factor:g} x noise from their plane"]
     if rho_delta is None:
         rho_delta = spacing + noise_factor * noise
         if not rho_delta > 0.0:
@@ -135,3 +148,13 @@ def estimate_parameters(
         rho_delta=rho_delta, cube_size=cube_size, min_neighbours=min_neighbours, spacing=spacing,
         noise=noise, phase1_fraction=phase1_fraction, notes=tuple(notes),
     )
+
+
+def _plane_residual(points, indices, distances, radius) -> float:
+    """Median RMS distance of neighbourhoods (rows of `indices` within `radius`) from their plane."""
+    radius = np.full(indices.shape[0], radius, dtype=np.float64)
+    _, covariances, counts = centroid_covariance(points, indices.astype(np.int64), distances, radius)
+    # A plane fitted to m points absorbs 3 of their m degrees of freedom.
+    residual = np.linalg.eigvalsh(covariances)[:, 0].clip(min=0.0) * counts / np.maximum(counts - 3, 1)
+    return float(np.sqrt(np.median(residual)))
+

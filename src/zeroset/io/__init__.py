@@ -8,6 +8,7 @@ temporary file in the target's directory, so a failed write leaves the target un
 
 from __future__ import annotations
 
+import json
 import os
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -21,8 +22,8 @@ from ..types import Mesh, PointCloud
 from . import _mesh, _numpy, _ply, _text
 from ._atomic import atomic_target
 
-__all__ = ["MESH_FORMATS", "POINT_FORMATS", "read_mesh", "read_points", "write_mesh",
-           "write_points"]
+__all__ = ["MESH_FORMATS", "POINT_FORMATS", "atomic_target", "read_mesh", "read_points",
+           "write_json", "write_mesh", "write_points"]
 
 _POINT_READERS = {
     ".csv": _text.read_points,
@@ -282,3 +283,23 @@ def _about(path: str | os.PathLike, verb: str) -> Iterator[None]:
         raise InputError(f"{os.fspath(path)}: {exc}") from exc
     except OSError as exc:
         raise InputError(f"{os.fspath(path)}: cannot {verb} ({exc.strerror or exc})") from exc
+
+
+def write_json(path: str | os.PathLike, data: dict) -> Path:
+    """Write `data` as indented JSON, atomically; return the path written."""
+    target = Path(path)
+    if not target.parent.is_dir():
+        raise InputError(f"{target}: directory {target.parent} does not exist")
+    with atomic_target(target) as temp:
+        temp.write_text(json.dumps(data, indent=2, default=_json_default) + "\n")
+    return target
+
+
+def _json_default(value):
+    """Convert NumPy scalars and arrays for json."""
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    raise TypeError(f"cannot write {type(value).__name__} as JSON")
+

@@ -1,0 +1,48 @@
+"""Shared fixtures: seeded synthetic clouds and their reconstructions (built once per session)."""
+
+import numpy as np
+import pytest
+
+from zeroset import reconstruct
+from zeroset.synthetic import sample_cylinder, sample_sphere, sample_torus, two_spheres
+from zeroset.types import Mesh
+
+PIPE_NOISE = 0.002
+
+
+@pytest.fixture
+def rng():
+    return np.random.default_rng(12345)
+
+
+@pytest.fixture(scope="session")
+def pipe():
+    """Noisy open pipe (radius 0.25 m, length 1 m, sigma 2 mm) and its reconstruction."""
+    sample = sample_cylinder(30_000, noise=PIPE_NOISE, rng=1)
+    return sample, reconstruct(sample.points)
+
+
+@pytest.fixture(scope="session")
+def sphere():
+    sample = sample_sphere(6_000, noise=0.005, rng=2)
+    return sample, reconstruct(sample.points)
+
+
+@pytest.fixture(scope="session")
+def torus():
+    sample = sample_torus(12_000, noise=0.005, rng=3)
+    return sample, reconstruct(sample.points)
+
+
+@pytest.fixture(scope="session")
+def spheres():
+    sample = two_spheres(9_000, noise=0.005, rng=4)
+    return sample, reconstruct(sample.points)
+
+
+@pytest.fixture
+def tetra_mesh():
+    """A closed, outward-facing tetrahedron."""
+    vertices = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], dtype=float)
+    faces = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
+    return Mesh(vertices=vertices, faces=faces)

@@ -1,0 +1,60 @@
+import numpy as np
+import pytest
+
+from zeroset.normals import tangent_planes
+from zeroset.orientation import orient_normals
+from zeroset.synthetic import sample_cylinder, sample_sphere, two_spheres
+
+
+def _random_signs(normals, rng):
+    return normals * rng.choice([-1.0, 1.0], size=(normals.shape[0], 1))
+
+
+def test_sphere_normals_point_outwards(rng):
+    points = sample_sphere(3000, noise=0.01, rng=0).points
+    planes = tangent_planes(points, radius=0.2)
+    result = orient_normals(planes.centroids, _random_signs(planes.normals, rng))
+    assert result.method == "mst" and result.n_components == 1
+    assert np.all(np.einsum("ij,ij->i", result.normals, planes.centroids) > 0)
+
+
+def test_z_axis_cylinder_normals_point_away_from_the_axis(rng):
+    points = sample_cylinder(8000, noise=0.002, rng=1).points
+    planes = tangent_planes(points, radius=0.03)
+    result = orient_normals(planes.centroids, _random_signs(planes.normals, rng))
+    radial = np.einsum("ij,ij->i", result.normals[:, :2], planes.centroids[:, :2])
+    assert np.mean(radial > 0) > 0.999
+
+
+def test_each_component_is_seeded_on_its_own(rng):
+    sample = two_spheres(4000, rng=2)
+    planes = tangent_planes(sample.points, radius=0.2)
+    result = orient_normals(planes.centroids, _random_signs(planes.normals, rng), max_edge=0.4)
+    assert result.n_components == 2
+    centre = np.where(planes.centroids[:, [0]] > 1.5, [3.0, 0.0, 0.0], 0.0)
+    assert np.all(np.einsum("ij,ij->i", result.normals, planes.centroids - centre) > 0)
+
+
+def test_flipped_records_which_normals_changed(rng):
+    points = sample_sphere(1000, rng=3).points
+    planes = tangent_planes(points, radius=0.3)
+    given = _random_signs(planes.normals, rng)
+    result = orient_normals(planes.centroids, given)
+    np.testing.assert_array_equal(result.normals, np.where(result.flipped[:, None], -given, given))
+
+
+@pytest.mark.parametrize("per_point", [False, True])
+def test_viewpoint_orientation_faces_the_sensor(per_point, rng):
+    points = sample_cylinder(3000, rng=4).points
+    planes = tangent_planes(points, radius=0.05)
+    sensor = np.array([0.05, 0.0, 0.5])
+    viewpoints = np.tile(sensor, (3000, 1)) if per_point else sensor
+    result = orient_normals(planes.centroids, _random_signs(planes.normals, rng), viewpoints=viewpoints)
+    assert result.method == "viewpoint"
+    assert np.all(np.einsum("ij,ij->i", result.normals, sensor - planes.centroids) >= 0)
+
+
+def test_viewpoints_of_the_wrong_shape_are_rejected(rng):
+    c = rng.normal(size=(10, 3))
+    with pytest.raises(ValueError, match="viewpoints must be"):
+        orient_normals(c, c, viewpoints=np.zeros((4, 3)))
