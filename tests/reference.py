@@ -4,7 +4,7 @@ import numpy as np
 
 
 def centroid_covariance(points, indices, distances, radius):
-    """Centroid, covariance and count of the neighbours within radius[i] of each row (slow, clear)."""
+    """Centroid, covariance and count of the neighbours within radius[i] of each row."""
     n = indices.shape[0]
     centroids, covariances, counts = np.zeros((n, 3)), np.zeros((n, 3, 3)), np.zeros(n, int)
     for i in range(n):

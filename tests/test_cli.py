@@ -17,8 +17,20 @@ def sphere_file(tmp_path_factory):
 
 def test_reconstruct_writes_mesh_report_and_preview(sphere_file, tmp_path, capsys):
     out = tmp_path / "mesh.obj"
-    code = main(["reconstruct", str(sphere_file), "-o", str(out), "--report", str(tmp_path / "r.json"),
-                 "--preview", str(tmp_path / "p.png"), "--seed", "3"])
+    code = main(
+        [
+            "reconstruct",
+            str(sphere_file),
+            "-o",
+            str(out),
+            "--report",
+            str(tmp_path / "r.json"),
+            "--preview",
+            str(tmp_path / "p.png"),
+            "--seed",
+            "3",
+        ]
+    )
     assert code == 0
     mesh = io.read_mesh(out)
     assert topology.euler_characteristic(mesh) == 2
@@ -33,9 +45,23 @@ def test_reconstruct_writes_mesh_report_and_preview(sphere_file, tmp_path, capsy
 
 def test_options_reach_the_pipeline(sphere_file, tmp_path):
     out = tmp_path / "mesh.ply"
-    code = main(["reconstruct", str(sphere_file), "-o", str(out), "--radius", "0.2",
-                 "--cube-size", "0.12", "--sample", "0.5", "--report", str(tmp_path / "r.json"),
-                 "--quiet"])
+    code = main(
+        [
+            "reconstruct",
+            str(sphere_file),
+            "-o",
+            str(out),
+            "--radius",
+            "0.2",
+            "--cube-size",
+            "0.12",
+            "--sample",
+            "0.5",
+            "--report",
+            str(tmp_path / "r.json"),
+            "--quiet",
+        ]
+    )
     assert code == 0
     report = json.loads((tmp_path / "r.json").read_text())
     assert report["parameters"]["rho_delta"] == 0.2
@@ -46,8 +72,20 @@ def test_options_reach_the_pipeline(sphere_file, tmp_path):
 def test_viewpoint_option_orients_towards_the_sensor(tmp_path):
     path = tmp_path / "pipe.xyz"
     io.write_points(path, sample_cylinder(6000, noise=0.002, rng=1).points)
-    assert main(["reconstruct", str(path), "-o", str(tmp_path / "m.ply"), "--viewpoint",
-                 "0,0,0.5", "--quiet"]) == 0
+    assert (
+        main(
+            [
+                "reconstruct",
+                str(path),
+                "-o",
+                str(tmp_path / "m.ply"),
+                "--viewpoint",
+                "0,0,0.5",
+                "--quiet",
+            ]
+        )
+        == 0
+    )
     mesh = io.read_mesh(tmp_path / "m.ply")
     tri = mesh.vertices[mesh.faces]
     normals = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
@@ -55,13 +93,16 @@ def test_viewpoint_option_orients_towards_the_sensor(tmp_path):
     assert np.mean(np.einsum("ij,ij->i", normals[:, :2], tri.mean(axis=1)[:, :2]) < 0) > 0.99
 
 
-@pytest.mark.parametrize("content, message", [
-    (None, "no such file"),
-    ("", "no points"),
-    ("0 0 0\n1 1 nan\n" + "1 2 3\n" * 40, "non-finite"),
-    ("".join(f"{t} {2 * t} {3 * t}\n" for t in range(100)), "collinear"),
-    ("0 0 0\n1 0 0\n0 1 0\n", "at least"),
-])
+@pytest.mark.parametrize(
+    "content, message",
+    [
+        (None, "no such file"),
+        ("", "no points"),
+        ("0 0 0\n1 1 nan\n" + "1 2 3\n" * 40, "non-finite"),
+        ("".join(f"{t} {2 * t} {3 * t}\n" for t in range(100)), "collinear"),
+        ("0 0 0\n1 0 0\n0 1 0\n", "at least"),
+    ],
+)
 def test_bad_input_exits_2_with_one_line(content, message, tmp_path, capsys):
     path = tmp_path / "scan.xyz"
     if content is not None:
@@ -79,7 +120,10 @@ def test_unknown_output_format_exits_2(sphere_file, tmp_path, capsys):
 
 
 def test_no_surface_exits_1(sphere_file, tmp_path, capsys):
-    assert main(["reconstruct", str(sphere_file), "-o", str(tmp_path / "m.ply"), "--radius", "1e-5"]) == 1
+    assert (
+        main(["reconstruct", str(sphere_file), "-o", str(tmp_path / "m.ply"), "--radius", "1e-5"])
+        == 1
+    )
     assert "rho_delta" in capsys.readouterr().err
 
 
@@ -92,7 +136,12 @@ def test_bad_option_value_is_an_argparse_error(sphere_file, tmp_path):
 def test_demo_writes_its_folder(tmp_path, capsys):
     out = tmp_path / "demo"
     assert main(["demo", "--out", str(out), "--points", "8000"]) == 0
-    assert {p.name for p in out.iterdir()} == {"pipe-points.ply", "mesh.ply", "preview.png", "report.json"}
+    assert {p.name for p in out.iterdir()} == {
+        "pipe-points.ply",
+        "mesh.ply",
+        "preview.png",
+        "report.json",
+    }
     report = json.loads((out / "report.json").read_text())
     assert report["stats"]["boundary_loops"] == 2
     printed = capsys.readouterr().out

@@ -15,8 +15,12 @@ def _field(values_of, half_width, cube, band=None):
     values = values_of(cube * ijk.astype(float))
     keep = np.ones(len(ijk), bool) if band is None else np.abs(values) < band
     order = np.argsort(_lattice.encode(ijk[keep]))
-    return DistanceField(vertices_ijk=ijk[keep][order], values=values[keep][order],
-                         origin=np.zeros(3), cube_size=cube)
+    return DistanceField(
+        vertices_ijk=ijk[keep][order],
+        values=values[keep][order],
+        origin=np.zeros(3),
+        cube_size=cube,
+    )
 
 
 def _sphere(x):
@@ -65,8 +69,9 @@ def test_cubes_with_an_undefined_corner_are_skipped():
     hole = np.flatnonzero(np.all(field.vertices_ijk == [0, 0, 0], axis=1))
     values = field.values.copy()
     values[hole] = np.nan
-    holed = DistanceField(vertices_ijk=field.vertices_ijk, values=values, origin=np.zeros(3),
-                          cube_size=0.1)
+    holed = DistanceField(
+        vertices_ijk=field.vertices_ijk, values=values, origin=np.zeros(3), cube_size=0.1
+    )
     full, mesh = marching_cubes(field), marching_cubes(holed)
     # The plane z = 0.013 crosses 10 x 10 cubes; the four around (0, 0, 0) are skipped.
     assert full.n_faces == 2 * 100 and mesh.n_faces == 2 * 96
@@ -83,6 +88,7 @@ def test_jump_between_two_planes_is_not_contoured():
 def test_vertices_sit_at_the_linear_zero_crossing():
     mesh = marching_cubes(_field(lambda x: x @ np.array([0.3, -0.2, 0.9]) - 0.01, 4, 0.25))
     np.testing.assert_allclose(mesh.vertices @ np.array([0.3, -0.2, 0.9]), 0.01, atol=1e-12)
-    normals = np.cross(*(mesh.vertices[mesh.faces[:, i]] - mesh.vertices[mesh.faces[:, 0]]
-                         for i in (1, 2)))
+    normals = np.cross(
+        *(mesh.vertices[mesh.faces[:, i]] - mesh.vertices[mesh.faces[:, 0]] for i in (1, 2))
+    )
     assert np.all(normals @ np.array([0.3, -0.2, 0.9]) > 0)

@@ -14,7 +14,9 @@ def test_closest_points_beat_a_dense_sampling_of_each_triangle(rng):
         brute = np.linalg.norm(samples - p[i], axis=1).min()
         mine = np.linalg.norm(foot[i] - p[i])
         assert mine <= brute + 1e-12
-        assert mine >= brute - 0.02 * np.linalg.norm(b[i] - a[i]) - 0.02 * np.linalg.norm(c[i] - a[i])
+        assert mine >= brute - 0.02 * np.linalg.norm(b[i] - a[i]) - 0.02 * np.linalg.norm(
+            c[i] - a[i]
+        )
 
 
 def test_points_to_mesh_distance_on_a_tetrahedron(tetra_mesh):

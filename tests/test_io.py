@@ -83,8 +83,9 @@ def test_read_ply_points(tmp_path, encoding, with_normals):
     assert path.read_bytes() == before
 
 
-@pytest.mark.parametrize("names", [("vp_x", "vp_y", "vp_z"),
-                                   ("viewpoint_x", "viewpoint_y", "viewpoint_z")])
+@pytest.mark.parametrize(
+    "names", [("vp_x", "vp_y", "vp_z"), ("viewpoint_x", "viewpoint_y", "viewpoint_z")]
+)
 def test_read_ply_viewpoints(tmp_path, names):
     points, _ = _cloud()
     sensors = np.repeat([[0.0, 0.0, 10.0], [5.0, 5.0, 10.0]], 25, axis=0)
@@ -99,10 +100,16 @@ def test_read_ply_integer_points_ignore_faces_and_range_grid(tmp_path):
     face = np.zeros(2, dtype=[("vertex_indices", "i4", (3,))])
     face["vertex_indices"] = [[0, 1, 2], [2, 3, 4]]
     grid = np.zeros(4, dtype=[("vertex_indices", "O")])
-    grid["vertex_indices"] = [np.array([0], "i4"), np.array([], "i4"), np.array([1], "i4"),
-                              np.array([2], "i4")]
-    extra = (plyfile.PlyElement.describe(face, "face"),
-             plyfile.PlyElement.describe(grid, "range_grid"))
+    grid["vertex_indices"] = [
+        np.array([0], "i4"),
+        np.array([], "i4"),
+        np.array([1], "i4"),
+        np.array([2], "i4"),
+    ]
+    extra = (
+        plyfile.PlyElement.describe(face, "face"),
+        plyfile.PlyElement.describe(grid, "range_grid"),
+    )
     path = _write_ply(tmp_path / "scan.ply", _xyz_columns(points, "i4"), extra=extra)
     cloud = zio.read_points(path)
     assert cloud.points.dtype == np.float64
@@ -131,8 +138,14 @@ def test_read_xyz_six_columns_are_normals(tmp_path):
 def test_read_csv_with_header(tmp_path):
     points, normals = _cloud()
     path = tmp_path / "scan.csv"
-    np.savetxt(path, np.hstack([points, normals]), fmt="%.17g", delimiter=", ",
-               header="x,y,z,nx,ny,nz", comments="")
+    np.savetxt(
+        path,
+        np.hstack([points, normals]),
+        fmt="%.17g",
+        delimiter=", ",
+        header="x,y,z,nx,ny,nz",
+        comments="",
+    )
     cloud = zio.read_points(path)
     np.testing.assert_array_equal(cloud.points, points)
     np.testing.assert_array_equal(cloud.normals, normals)
@@ -142,8 +155,14 @@ def test_read_csv_colour_header_is_not_normals(tmp_path):
     points, _ = _cloud()
     colours = np.random.default_rng(0).integers(0, 256, size=(50, 3))
     path = tmp_path / "scan.csv"
-    np.savetxt(path, np.hstack([points, colours]), fmt="%.17g", delimiter=",",
-               header="//X,Y,Z,R,G,B", comments="")
+    np.savetxt(
+        path,
+        np.hstack([points, colours]),
+        fmt="%.17g",
+        delimiter=",",
+        header="//X,Y,Z,R,G,B",
+        comments="",
+    )
     cloud = zio.read_points(path)
     np.testing.assert_array_equal(cloud.points, points)
     assert cloud.normals is None
@@ -153,8 +172,10 @@ def test_read_txt_with_comments(tmp_path):
     points, _ = _cloud(n=4)
     intensity = np.arange(4)
     lines = ["# exported by a scanner", "", "# x y z intensity"]
-    lines += [f"{x:.17g} {y:.17g} {z:.17g} {i}  # point {i}"
-              for (x, y, z), i in zip(points, intensity, strict=True)]
+    lines += [
+        f"{x:.17g} {y:.17g} {z:.17g} {i}  # point {i}"
+        for (x, y, z), i in zip(points, intensity, strict=True)
+    ]
     lines.insert(5, "# a comment between rows")
     path = tmp_path / "scan.txt"
     path.write_text("\n".join(lines) + "\n")
@@ -325,26 +346,56 @@ _NAN_ROWS[17] = np.nan  # three values
 _NAN_ROWS[19, 1] = np.inf  # and one more
 
 READ_ERRORS = [
-    ("scan.ply", _ply_text(["element vertex 1", "property float x", "property flot y",
-                            "property float z"]),
-     r"not a valid PLY file \(line 5: field type 'flot'"),
-    ("scan.ply", _ply_text(["element vertex 3", "property float x", "property float y",
-                            "property float z"]),
-     r"not a valid PLY file \(element 'vertex': row 1: .*early end-of-file"),
+    (
+        "scan.ply",
+        _ply_text(["element vertex 1", "property float x", "property flot y", "property float z"]),
+        r"not a valid PLY file \(line 5: field type 'flot'",
+    ),
+    (
+        "scan.ply",
+        _ply_text(["element vertex 3", "property float x", "property float y", "property float z"]),
+        r"not a valid PLY file \(element 'vertex': row 1: .*early end-of-file",
+    ),
     ("scan.ply", "", r"not a valid PLY file \(line 1: expected 'ply'\)"),
-    ("scan.ply", _ply_text(["element vertex 0", "property float x", "property float y",
-                            "property float z"], rows=()), "contains no points"),
-    ("scan.ply", _ply_text(["element face 0", "property list uchar int vertex_indices"],
-                           rows=()), "has no 'vertex' element"),
-    ("scan.ply", _ply_text(["element vertex 1", "property float x", "property float y",
-                            "property float z", "property float nx"], rows=("0 0 0 1",)),
-     "has nx but not ny, nz"),
-    ("scan.ply", _ply_text(["element vertex 1", "property float u", "property float v",
-                            "property float w"]), "no x, y, z properties"),
+    (
+        "scan.ply",
+        _ply_text(
+            ["element vertex 0", "property float x", "property float y", "property float z"],
+            rows=(),
+        ),
+        "contains no points",
+    ),
+    (
+        "scan.ply",
+        _ply_text(["element face 0", "property list uchar int vertex_indices"], rows=()),
+        "has no 'vertex' element",
+    ),
+    (
+        "scan.ply",
+        _ply_text(
+            [
+                "element vertex 1",
+                "property float x",
+                "property float y",
+                "property float z",
+                "property float nx",
+            ],
+            rows=("0 0 0 1",),
+        ),
+        "has nx but not ny, nz",
+    ),
+    (
+        "scan.ply",
+        _ply_text(["element vertex 1", "property float u", "property float v", "property float w"]),
+        "no x, y, z properties",
+    ),
     ("scan.xyz", "", "contains no points"),
     ("scan.txt", "# nothing\n\n# here\n", "contains no points"),
-    ("scan.xyz", "\n".join(" ".join(map(str, row)) for row in _NAN_ROWS),
-     r"4 non-finite values in 2 rows \(first at row 17\); drop or impute them first"),
+    (
+        "scan.xyz",
+        "\n".join(" ".join(map(str, row)) for row in _NAN_ROWS),
+        r"4 non-finite values in 2 rows \(first at row 17\); drop or impute them first",
+    ),
     ("scan.csv", "x,y,z\n1,2,3\n4,5,6\n7,8\n", "line 4 has 2 columns; expected at least 3"),
     ("scan.xyz", "1 2\n3 4\n", "line 1 has 2 columns; expected at least 3"),
     ("scan.xyz", "x y z\n1\n", "line 2 has 1 column; expected at least 3"),
@@ -406,8 +457,11 @@ def test_read_missing_file_and_directory(tmp_path, read):
 
 
 def test_unknown_suffixes(tmp_path):
-    with pytest.raises(InputError, match=r"scan.xyz2: unknown point format '.xyz2'; "
-                                         r"supported: .csv, .npy, .npz, .ply, .pts"):
+    with pytest.raises(
+        InputError,
+        match=r"scan.xyz2: unknown point format '.xyz2'; "
+        r"supported: .csv, .npy, .npz, .ply, .pts",
+    ):
         zio.read_points(tmp_path / "scan.xyz2")
     with pytest.raises(InputError, match="scan: has no suffix; supported"):
         zio.read_points(tmp_path / "scan")

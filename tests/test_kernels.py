@@ -38,14 +38,18 @@ COMPARISONS = [
 ]
 
 
-@pytest.mark.parametrize("kernel, ref, build", COMPARISONS, ids=lambda f: getattr(f, "__name__", ""))
+@pytest.mark.parametrize(
+    "kernel, ref, build", COMPARISONS, ids=lambda f: getattr(f, "__name__", "")
+)
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_kernel_matches_reference(kernel, ref, build, seed):
     inputs = build(np.random.default_rng(seed))
     got, expected = kernel(*inputs), ref(*inputs)
-    for g, e in zip(np.atleast_1d(got) if not isinstance(got, tuple) else got,
-                    np.atleast_1d(expected) if not isinstance(expected, tuple) else expected,
-                    strict=True):
+    for g, e in zip(
+        np.atleast_1d(got) if not isinstance(got, tuple) else got,
+        np.atleast_1d(expected) if not isinstance(expected, tuple) else expected,
+        strict=True,
+    ):
         np.testing.assert_allclose(g, e, rtol=1e-10, atol=1e-12)
 
 

@@ -32,7 +32,9 @@ def test_normals_rotate_with_the_points(rng):
     q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
     a = tangent_planes(points, radius=0.25)
     b = tangent_planes(points @ q.T + 5.0, radius=0.25)
-    np.testing.assert_allclose(np.abs(np.einsum("ij,ij->i", a.normals @ q.T, b.normals)), 1.0, atol=1e-6)
+    np.testing.assert_allclose(
+        np.abs(np.einsum("ij,ij->i", a.normals @ q.T, b.normals)), 1.0, atol=1e-6
+    )
     np.testing.assert_allclose(a.centroids @ q.T + 5.0, b.centroids, atol=1e-9)
 
 

@@ -49,7 +49,9 @@ def test_viewpoint_orientation_faces_the_sensor(per_point, rng):
     planes = tangent_planes(points, radius=0.05)
     sensor = np.array([0.05, 0.0, 0.5])
     viewpoints = np.tile(sensor, (3000, 1)) if per_point else sensor
-    result = orient_normals(planes.centroids, _random_signs(planes.normals, rng), viewpoints=viewpoints)
+    result = orient_normals(
+        planes.centroids, _random_signs(planes.normals, rng), viewpoints=viewpoints
+    )
     assert result.method == "viewpoint"
     assert np.all(np.einsum("ij,ij->i", result.normals, sensor - planes.centroids) >= 0)
 

@@ -32,19 +32,23 @@ def test_denser_clouds_get_smaller_spacing_and_phase1_sampling(rng):
 
 
 def test_given_values_win_and_are_noted(rng):
-    params = estimate_parameters(_noisy_plane(1_000, 0.0, rng), rho_delta=0.5, cube_size=0.25,
-                                 phase1_fraction=0.7)
+    params = estimate_parameters(
+        _noisy_plane(1_000, 0.0, rng), rho_delta=0.5, cube_size=0.25, phase1_fraction=0.7
+    )
     assert (params.rho_delta, params.cube_size, params.phase1_fraction) == (0.5, 0.25, 0.7)
     assert sum("given" in note for note in params.notes) == 3
 
 
-@pytest.mark.parametrize("option, value, message", [
-    ("quantile", 1.5, "quantile must lie in"),
-    ("rho_delta", -1.0, "rho_delta must be a positive number"),
-    ("cube_size", 0.0, "cube_size must be a positive number"),
-    ("phase1_fraction", 2.0, "phase1_fraction must lie in"),
-    ("k", 0, "k must be a positive integer"),
-])
+@pytest.mark.parametrize(
+    "option, value, message",
+    [
+        ("quantile", 1.5, "quantile must lie in"),
+        ("rho_delta", -1.0, "rho_delta must be a positive number"),
+        ("cube_size", 0.0, "cube_size must be a positive number"),
+        ("phase1_fraction", 2.0, "phase1_fraction must lie in"),
+        ("k", 0, "k must be a positive integer"),
+    ],
+)
 def test_bad_options_are_rejected(option, value, message, rng):
     with pytest.raises(InputError, match=message):
         estimate_parameters(_noisy_plane(100, 0.0, rng), **{option: value})

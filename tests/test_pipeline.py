@@ -84,10 +84,15 @@ def test_two_disjoint_objects_are_both_reconstructed(spheres):
     n_components, label = topology.face_components(mesh.faces, mesh.n_vertices)
     assert n_components == 2
     for centre in ([0.0, 0.0, 0.0], [3.0, 0.0, 0.0]):
-        part = label == label[np.argmin(np.linalg.norm(mesh.vertices[mesh.faces[:, 0]] - centre, axis=1))]
+        part = (
+            label
+            == label[np.argmin(np.linalg.norm(mesh.vertices[mesh.faces[:, 0]] - centre, axis=1))]
+        )
         faces = mesh.faces[part]
         tri_centres = mesh.vertices[faces].mean(axis=1)
-        normals = np.cross(*(mesh.vertices[faces[:, i]] - mesh.vertices[faces[:, 0]] for i in (1, 2)))
+        normals = np.cross(
+            *(mesh.vertices[faces[:, i]] - mesh.vertices[faces[:, 0]] for i in (1, 2))
+        )
         assert np.mean(np.einsum("ij,ij->i", normals, tri_centres - centre) > 0) > 0.99
     assert sample.distance(mesh.vertices).max() < 0.05
 
@@ -140,8 +145,16 @@ def test_outliers_are_dropped_and_counted():
 
 def test_every_stage_is_timed(pipe):
     _, result = pipe
-    assert set(result.timings) == {"prepare", "parameters", "neighbours", "outliers",
-                                   "tangent planes", "orientation", "signed distance", "contour"}
+    assert set(result.timings) == {
+        "prepare",
+        "parameters",
+        "neighbours",
+        "outliers",
+        "tangent planes",
+        "orientation",
+        "signed distance",
+        "contour",
+    }
     assert all(seconds >= 0 for seconds in result.timings.values())
 
 

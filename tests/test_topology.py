@@ -14,7 +14,10 @@ def _grid_mesh(n):
     faces = []
     for i in range(n):
         for j in range(n):
-            faces += [(idx(i, j), idx(i + 1, j), idx(i + 1, j + 1)), (idx(i, j), idx(i + 1, j + 1), idx(i, j + 1))]
+            faces += [
+                (idx(i, j), idx(i + 1, j), idx(i + 1, j + 1)),
+                (idx(i, j), idx(i + 1, j + 1), idx(i, j + 1)),
+            ]
     return Mesh(vertices=vertices, faces=np.array(faces))
 
 
@@ -50,7 +53,9 @@ def test_small_hole_is_filled_and_large_one_kept():
     filled, count = fill_small_holes(mesh, max_edges=4)
     assert count == 1
     assert len(topology.boundary_loops(filled.faces)) == 1
-    assert topology.is_edge_manifold(filled.faces) and topology.is_consistently_oriented(filled.faces)
+    assert topology.is_edge_manifold(filled.faces) and topology.is_consistently_oriented(
+        filled.faces
+    )
     kept, count = fill_small_holes(mesh, max_edges=3)
     assert count == 0 and kept.n_faces == mesh.n_faces
 
@@ -66,9 +71,13 @@ def test_bowtie_vertex_is_split():
 
 def test_small_components_are_removed():
     big = _grid_mesh(5)
-    speck = Mesh(vertices=np.array([[9, 9, 0], [10, 9, 0], [9, 10, 0]], float), faces=np.array([[0, 1, 2]]))
-    both = Mesh(vertices=np.concatenate([big.vertices, speck.vertices]),
-                faces=np.concatenate([big.faces, speck.faces + big.n_vertices]))
+    speck = Mesh(
+        vertices=np.array([[9, 9, 0], [10, 9, 0], [9, 10, 0]], float), faces=np.array([[0, 1, 2]])
+    )
+    both = Mesh(
+        vertices=np.concatenate([big.vertices, speck.vertices]),
+        faces=np.concatenate([big.faces, speck.faces + big.n_vertices]),
+    )
     cleaned, dropped = remove_small_components(both, min_faces=5)
     assert dropped == 1
     assert cleaned.n_faces == big.n_faces and cleaned.n_vertices == big.n_vertices

@@ -26,9 +26,12 @@ def encode(ijk: np.ndarray) -> np.ndarray:
 
 def decode(keys: np.ndarray) -> np.ndarray:
     """Return (N, 3) int64 lattice indices of (N,) int64 keys."""
-    return np.stack([(keys >> (2 * _BITS)) & _MASK, (keys >> _BITS) & _MASK, keys & _MASK], axis=1) - _BIAS
+    return (
+        np.stack([(keys >> (2 * _BITS)) & _MASK, (keys >> _BITS) & _MASK, keys & _MASK], axis=1)
+        - _BIAS
+    )
 
 
 def offset_keys(offsets: np.ndarray) -> np.ndarray:
-    """Return (M,) int64 key increments of small (M, 3) lattice offsets: key(a + d) = key(a) + key_d."""
+    """Return (M,) int64 key steps of small (M, 3) offsets: key(a + d) = key(a) + step(d)."""
     return (offsets[:, 0] << (2 * _BITS)) + (offsets[:, 1] << _BITS) + offsets[:, 2]

@@ -16,7 +16,9 @@ def as_points(values, name: str = "points", *, min_rows: int = 1) -> np.ndarray:
     try:
         array = np.array(values, dtype=np.float64, order="C", copy=True)
     except (TypeError, ValueError) as exc:
-        raise TypeError(f"{name} must be an array of real numbers; got {type(values).__name__}") from exc
+        raise TypeError(
+            f"{name} must be an array of real numbers; got {type(values).__name__}"
+        ) from exc
     if array.ndim != 2 or array.shape[1] != 3:
         raise InputError(f"{name} must have shape (N, 3); got {array.shape}")
     if array.shape[0] < min_rows:
@@ -38,8 +40,10 @@ def as_faces(values, n_vertices: int, name: str = "faces") -> np.ndarray:
     if array.ndim != 2 or array.shape[1] != 3:
         raise InputError(f"{name} must have shape (F, 3); got {array.shape}")
     if array.size and (array.min() < 0 or array.max() >= n_vertices):
-        raise InputError(f"{name} index vertices outside [0, {n_vertices}); got range "
-                         f"[{array.min()}, {array.max()}]")
+        raise InputError(
+            f"{name} index vertices outside [0, {n_vertices}); got range "
+            f"[{array.min()}, {array.max()}]"
+        )
     return array
 
 
@@ -56,7 +60,12 @@ def positive(value, name: str, *, allow_none: bool = False, integer: bool = Fals
     if value is None and allow_none:
         return None
     kind = numbers.Integral if integer else numbers.Real
-    if isinstance(value, bool) or not isinstance(value, kind) or not np.isfinite(value) or value <= 0:
+    if (
+        isinstance(value, bool)
+        or not isinstance(value, kind)
+        or not np.isfinite(value)
+        or value <= 0
+    ):
         expected = "a positive integer" if integer else "a positive number"
         raise InputError(f"{name} must be {expected}; got {value!r}")
     return int(value) if integer else float(value)
@@ -68,4 +77,6 @@ def require_rng(rng) -> np.random.Generator:
         return rng
     if rng is None or (isinstance(rng, numbers.Integral) and not isinstance(rng, bool)):
         return np.random.default_rng(rng)
-    raise TypeError(f"rng must be a numpy Generator, an integer seed or None; got {type(rng).__name__}")
+    raise TypeError(
+        f"rng must be a numpy Generator, an integer seed or None; got {type(rng).__name__}"
+    )

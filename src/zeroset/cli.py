@@ -47,8 +47,12 @@ def _parser() -> argparse.ArgumentParser:
     common.add_argument("--quiet", action="store_true", help="print nothing but errors")
     common.add_argument("--debug", action="store_true", help="show tracebacks")
 
-    rec = commands.add_parser("reconstruct", parents=[common], help="reconstruct a mesh from points",
-                              description="Reconstruct a triangle mesh from a point cloud file.")
+    rec = commands.add_parser(
+        "reconstruct",
+        parents=[common],
+        help="reconstruct a mesh from points",
+        description="Reconstruct a triangle mesh from a point cloud file.",
+    )
     rec.add_argument("input", type=Path, help="points: .ply .xyz .txt .csv .pts .npy .npz")
     rec.add_argument("-o", "--output", type=Path, required=True, help="mesh: .ply .obj .stl .off")
     rec.add_argument("--report", type=Path, help="write parameters, counts and timings as JSON")
@@ -57,9 +61,13 @@ def _parser() -> argparse.ArgumentParser:
     _add_config_options(rec)
     rec.set_defaults(command="reconstruct", run=_run_reconstruct)
 
-    demo = commands.add_parser("demo", parents=[common], help="reconstruct a built-in noisy pipe",
-                               description="Reconstruct a simulated noisy open pipe (radius "
-                               "0.25 m, length 1 m, noise 2 mm) and write the results to a folder.")
+    demo = commands.add_parser(
+        "demo",
+        parents=[common],
+        help="reconstruct a built-in noisy pipe",
+        description="Reconstruct a simulated noisy open pipe (radius "
+        "0.25 m, length 1 m, noise 2 mm) and write the results to a folder.",
+    )
     demo.add_argument("--out", type=Path, default=Path("zeroset-demo"), help="output folder")
     demo.add_argument("--points", type=int, default=DEMO_POINTS, help="number of points")
     demo.add_argument("--seed", type=int, default=0, help="seed of the simulated scan")
@@ -79,14 +87,23 @@ def _add_config_options(parser: argparse.ArgumentParser) -> None:
         kind = str(f.type)
         if "tuple" in kind:
             convert = _number_list(f.metadata["nargs"])
-            metavar = ",".join("xyz"[: f.metadata["nargs"]] if f.metadata["nargs"] == 3
-                               else ("x0", "y0", "z0", "x1", "y1", "z1"))
+            metavar = ",".join(
+                "xyz"[: f.metadata["nargs"]]
+                if f.metadata["nargs"] == 3
+                else ("x0", "y0", "z0", "x1", "y1", "z1")
+            )
         else:
             convert = int if kind.startswith("int") else float
             metavar = f.name.upper()
         default = f" (default: {f.default})" if f.default is not None else ""
-        group.add_argument(*names, dest=f.name, type=convert, default=argparse.SUPPRESS,
-                           metavar=metavar, help=f.metadata["help"] + default)
+        group.add_argument(
+            *names,
+            dest=f.name,
+            type=convert,
+            default=argparse.SUPPRESS,
+            metavar=metavar,
+            help=f.metadata["help"] + default,
+        )
 
 
 def _number_list(count: int):
@@ -98,7 +115,9 @@ def _number_list(count: int):
         except ValueError:
             values = ()
         if len(values) != count:
-            raise argparse.ArgumentTypeError(f"expected {count} comma-separated numbers; got {text!r}")
+            raise argparse.ArgumentTypeError(
+                f"expected {count} comma-separated numbers; got {text!r}"
+            )
         return values
 
     return parse
@@ -108,7 +127,9 @@ def _config_overrides(args: argparse.Namespace) -> dict:
     """The ReconstructionConfig fields given on the command line."""
     from .config import ReconstructionConfig
 
-    return {f.name: getattr(args, f.name) for f in fields(ReconstructionConfig) if hasattr(args, f.name)}
+    return {
+        f.name: getattr(args, f.name) for f in fields(ReconstructionConfig) if hasattr(args, f.name)
+    }
 
 
 def _run_reconstruct(args: argparse.Namespace) -> int:
@@ -117,16 +138,28 @@ def _run_reconstruct(args: argparse.Namespace) -> int:
     from .pipeline import reconstruct
 
     if args.output.suffix.lower() not in io.MESH_FORMATS:
-        raise InputError(f"{args.output}: unknown mesh format {args.output.suffix!r}; "
-                         f"supported: {', '.join(io.MESH_FORMATS)}")
+        raise InputError(
+            f"{args.output}: unknown mesh format {args.output.suffix!r}; "
+            f"supported: {', '.join(io.MESH_FORMATS)}"
+        )
     for target in (args.output, args.report, args.preview):
         if target is not None and not target.resolve().parent.is_dir():
             raise InputError(f"{target}: directory {target.parent} does not exist")
     cloud = io.read_points(args.input)
-    result = reconstruct(cloud.points, viewpoints=cloud.viewpoints, progress=not args.quiet,
-                         **_config_overrides(args))
-    return _finish(result, args, source=str(args.input), mesh_path=args.output,
-                   report_path=args.report, preview_path=args.preview)
+    result = reconstruct(
+        cloud.points,
+        viewpoints=cloud.viewpoints,
+        progress=not args.quiet,
+        **_config_overrides(args),
+    )
+    return _finish(
+        result,
+        args,
+        source=str(args.input),
+        mesh_path=args.output,
+        report_path=args.report,
+        preview_path=args.preview,
+    )
 
 
 def _run_demo(args: argparse.Namespace) -> int:
@@ -139,11 +172,19 @@ def _run_demo(args: argparse.Namespace) -> int:
     points_path = io.write_points(args.out / "pipe-points.ply", sample.points)
     result = reconstruct(sample.points, progress=not args.quiet, seed=args.seed)
     distance = sample.distance(result.mesh.vertices)
-    code = _finish(result, args, source=str(points_path), mesh_path=args.out / "mesh.ply",
-                   report_path=args.out / "report.json", preview_path=args.out / "preview.png")
+    code = _finish(
+        result,
+        args,
+        source=str(points_path),
+        mesh_path=args.out / "mesh.ply",
+        report_path=args.out / "report.json",
+        preview_path=args.out / "preview.png",
+    )
     if not args.quiet:
-        print(f"accuracy    mesh vertices lie {1000 * distance.mean():.2f} mm (mean) and "
-              f"{1000 * distance.max():.2f} mm (max) from the true pipe")
+        print(
+            f"accuracy    mesh vertices lie {1000 * distance.mean():.2f} mm (mean) and "
+            f"{1000 * distance.max():.2f} mm (max) from the true pipe"
+        )
         print(f"wrote       {args.out}/: pipe-points.ply, mesh.ply, preview.png, report.json")
     return code
 

@@ -19,12 +19,16 @@ class ReconstructionConfig:
     rho_delta: float | None = _opt(
         None, "neighbourhood radius rho+delta in data units (default: estimated)", flag="radius"
     )
-    cube_size: float | None = _opt(None, "marching-cubes cube size (default: cube_factor x rho_delta)")
+    cube_size: float | None = _opt(
+        None, "marching-cubes cube size (default: cube_factor x rho_delta)"
+    )
     quantile: float = _opt(0.9, "quantile of neighbour distances that sets rho_delta")
     radius_k: int = _opt(12, "rank of the neighbour whose distance measures the point spacing")
     noise_factor: float = _opt(3.0, "rho_delta = spacing + noise_factor x estimated noise")
     cube_factor: float = _opt(1.5, "cube size over rho_delta when cube_size is not given")
-    k_min: int = _opt(10, "smallest neighbourhood for a tangent plane (wider than rho_delta if needed)")
+    k_min: int = _opt(
+        10, "smallest neighbourhood for a tangent plane (wider than rho_delta if needed)"
+    )
     k_max: int = _opt(16, "largest neighbourhood for a tangent plane, the point included")
     min_neighbours: int = _opt(4, "points with fewer others within rho_delta are outliers")
     orient_k: int = _opt(8, "neighbours per point in the orientation graph")
@@ -55,5 +59,7 @@ class ReconstructionConfig:
         names = {f.name for f in fields(self)}
         unknown = sorted(set(overrides) - names)
         if unknown:
-            raise TypeError(f"unknown reconstruction parameter(s) {unknown}; known: {sorted(names)}")
+            raise TypeError(
+                f"unknown reconstruction parameter(s) {unknown}; known: {sorted(names)}"
+            )
         return replace(self, **overrides)

@@ -64,7 +64,9 @@ def marching_cubes(field: DistanceField) -> Mesh:
     rank = np.arange(cube_of_tri.size) - np.repeat(np.cumsum(per_cube) - per_cube, per_cube)
     edges = table[config[cube_of_tri], rank]  # (T, 3) cube edge ids
     # Global edge key: key of the edge's lower lattice vertex, shifted, with its axis.
-    lower = keys[cubes][cube_of_tri][:, None] + _lattice.offset_keys(CORNER_OFFSETS)[EDGE_CORNER[edges]]
+    lower = (
+        keys[cubes][cube_of_tri][:, None] + _lattice.offset_keys(CORNER_OFFSETS)[EDGE_CORNER[edges]]
+    )
     edge_keys = (lower << 2) | EDGE_AXIS[edges]
     unique_edges, faces = np.unique(edge_keys, return_inverse=True)
 

@@ -1,4 +1,4 @@
-"""Signed distance to the tangent planes on a sparse band of the global lattice (Hoppe et al. 1992, §3.4)."""
+"""Signed distance to the tangent planes on a sparse lattice band (Hoppe et al. 1992, §3.4)."""
 
 from __future__ import annotations
 

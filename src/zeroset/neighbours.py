@@ -11,7 +11,7 @@ __all__ = ["build_tree", "knn", "restrict", "spatial_order"]
 
 
 def build_tree(points: np.ndarray) -> cKDTree:
-    """Build a k-d tree over (N, 3) float64 `points` (unbalanced: faster to build, as fast to query)."""
+    """Build a k-d tree over (N, 3) float64 `points` (unbalanced: quick to build)."""
     return cKDTree(points, balanced_tree=False, compact_nodes=False)
 
 
@@ -50,7 +50,7 @@ def knn(points: np.ndarray, k: int, *, tree: cKDTree | None = None) -> Neighbour
 
 
 def restrict(neighbours: Neighbourhoods, keep: np.ndarray) -> Neighbourhoods:
-    """Keep the rows of `keep` (N,) bool and renumber; dropped neighbours become -1 at distance inf."""
+    """Keep the rows where `keep` (N,) is true and renumber; dropped neighbours become -1, inf."""
     new_index = np.full(keep.shape[0], -1, dtype=np.int64)
     new_index[keep] = np.arange(int(keep.sum()))
     indices = new_index[neighbours.indices[keep]]

@@ -24,8 +24,9 @@ def tangent_planes(
 
     The neighbourhood of x_i is the up to `k_max` nearest points within `radius` (x_i
     included), widened to the `k_min` nearest where the radius holds fewer: a plane
-    through a handful of noisy points tilts at random. Its centroid o_i is the plane's origin, and the eigenvector of the smallest
-    eigenvalue of its covariance is the plane's normal n_i, not yet oriented.
+    through a handful of noisy points tilts at random. Its centroid o_i is the plane's
+    origin, and the eigenvector of the smallest eigenvalue of its covariance is the plane's
+    normal n_i, not yet oriented.
 
     Parameters
     ----------
@@ -67,8 +68,9 @@ def tangent_planes(
     indices = np.ascontiguousarray(neighbours.indices[:, :k_max])
     distances = np.ascontiguousarray(neighbours.distances[:, :k_max])
     k_min = min(k_min, indices.shape[1])
-    row_radius = np.maximum(radius, np.where(np.isfinite(distances[:, k_min - 1]),
-                                             distances[:, k_min - 1], radius))
+    row_radius = np.maximum(
+        radius, np.where(np.isfinite(distances[:, k_min - 1]), distances[:, k_min - 1], radius)
+    )
     centroids, covariances, counts = centroid_covariance(points, indices, distances, row_radius)
     eigenvalues, eigenvectors = np.linalg.eigh(covariances)
     normals = np.ascontiguousarray(eigenvectors[:, :, 0])

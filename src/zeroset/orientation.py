@@ -99,7 +99,9 @@ def orient_normals(
     )
     tree = minimum_spanning_tree(sparse.block_diag([graph, sparse.csr_matrix((1, 1))]) + virtual)
     order, predecessors = breadth_first_order(tree, n, directed=False, return_predecessors=True)
-    signs = propagate_signs(order.astype(np.int64), predecessors.astype(np.int64), normals, root_sign)
+    signs = propagate_signs(
+        order.astype(np.int64), predecessors.astype(np.int64), normals, root_sign
+    )
     return Orientation(
         normals=normals * signs[:, None],
         flipped=signs < 0,

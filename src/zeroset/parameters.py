@@ -94,7 +94,11 @@ def estimate_parameters(
     min_neighbours = positive(min_neighbours, "min_neighbours", integer=True)
     tree = build_tree(points) if tree is None else tree
     n = points.shape[0]
-    rows = np.arange(n) if n <= max_samples else np.sort(require_rng(rng).choice(n, max_samples, replace=False))
+    rows = (
+        np.arange(n)
+        if n <= max_samples
+        else np.sort(require_rng(rng).choice(n, max_samples, replace=False))
+    )
     kk = min(k + 1, n)
     distances, indices = tree.query(points[rows], k=kk, workers=-1)
     kth = distances[:, -1]
@@ -103,8 +107,9 @@ def estimate_parameters(
     if noise_factor > 0.0:
         # Small neighbourhoods absorb noise into the plane fit and underestimate it; widen
         # the neighbourhood to the radius the noise calls for until the estimate settles.
-        wide_distances, wide_indices = tree.query(points[rows[:NOISE_ROWS]], k=min(NOISE_K, n),
-                                                  workers=-1)
+        wide_distances, wide_indices = tree.query(
+            points[rows[:NOISE_ROWS]], k=min(NOISE_K, n), workers=-1
+        )
         for _ in range(4):
             radius = spacing + noise_factor * noise
             wider = _plane_residual(points, wide_indices, wide_distances, radius)
@@ -112,10 +117,12 @@ def estimate_parameters(
             noise = max(noise, wider)
             if settled:
                 break
-    notes = [f"spacing = {spacing:.6g}: {quantile:g} quantile of the distance to the "
-             f"{kk - 1}-th nearest neighbour (median {np.median(kth):.6g})",
-             f"noise = {noise:.6g}: median RMS distance of neighbourhoods of radius "
-             f"spacing + {noise_factor:g} x noise from their plane"]
+    notes = [
+        f"spacing = {spacing:.6g}: {quantile:g} quantile of the distance to the "
+        f"{kk - 1}-th nearest neighbour (median {np.median(kth):.6g})",
+        f"noise = {noise:.6g}: median RMS distance of neighbourhoods of radius "
+        f"spacing + {noise_factor:g} x noise from their plane",
+    ]
     if rho_delta is None:
         rho_delta = spacing + noise_factor * noise
         if not rho_delta > 0.0:
@@ -137,24 +144,34 @@ def estimate_parameters(
         # A ball of radius r holds about kk (r / median kth)^2 points of a surface.
         expected = kk * (rho_delta / max(float(np.median(kth)), 1e-300)) ** 2
         phase1_fraction = float(min(1.0, 1.5 * k_max / expected))
-        notes.append(f"phase1_fraction = {phase1_fraction:.3g}: a ball of radius rho_delta holds "
-                     f"~{expected:.0f} points; tangent planes need ~{1.5 * k_max:.0f}")
+        notes.append(
+            f"phase1_fraction = {phase1_fraction:.3g}: a ball of radius rho_delta holds "
+            f"~{expected:.0f} points; tangent planes need ~{1.5 * k_max:.0f}"
+        )
     else:
         if not 0.0 < phase1_fraction <= 1.0:
             raise InputError(f"phase1_fraction must lie in (0, 1]; got {phase1_fraction!r}")
         notes.append(f"phase1_fraction = {phase1_fraction:.3g}: given")
     notes.append(f"min_neighbours = {min_neighbours}: fewer others within rho_delta is an outlier")
     return Parameters(
-        rho_delta=rho_delta, cube_size=cube_size, min_neighbours=min_neighbours, spacing=spacing,
-        noise=noise, phase1_fraction=phase1_fraction, notes=tuple(notes),
+        rho_delta=rho_delta,
+        cube_size=cube_size,
+        min_neighbours=min_neighbours,
+        spacing=spacing,
+        noise=noise,
+        phase1_fraction=phase1_fraction,
+        notes=tuple(notes),
     )
 
 
 def _plane_residual(points, indices, distances, radius) -> float:
-    """Median RMS distance of neighbourhoods (rows of `indices` within `radius`) from their plane."""
+    """Median RMS plane-fit residual of the neighbourhoods: rows of `indices` within `radius`."""
     radius = np.full(indices.shape[0], radius, dtype=np.float64)
-    _, covariances, counts = centroid_covariance(points, indices.astype(np.int64), distances, radius)
+    _, covariances, counts = centroid_covariance(
+        points, indices.astype(np.int64), distances, radius
+    )
     # A plane fitted to m points absorbs 3 of their m degrees of freedom.
-    residual = np.linalg.eigvalsh(covariances)[:, 0].clip(min=0.0) * counts / np.maximum(counts - 3, 1)
+    residual = (
+        np.linalg.eigvalsh(covariances)[:, 0].clip(min=0.0) * counts / np.maximum(counts - 3, 1)
+    )
     return float(np.sqrt(np.median(residual)))
-

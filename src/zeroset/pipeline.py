@@ -23,8 +23,16 @@ from .types import DistanceField, Mesh, Orientation, Parameters, TangentPlanes
 
 __all__ = ["Reconstruction", "reconstruct"]
 
-STAGES = ("prepare", "parameters", "neighbours", "outliers", "tangent planes", "orientation",
-          "signed distance", "contour")
+STAGES = (
+    "prepare",
+    "parameters",
+    "neighbours",
+    "outliers",
+    "tangent planes",
+    "orientation",
+    "signed distance",
+    "contour",
+)
 
 
 @dataclass(frozen=True, eq=False)
@@ -72,7 +80,11 @@ class Reconstruction:
 
 
 def reconstruct(
-    points, config: ReconstructionConfig | None = None, *, viewpoints=None, progress: bool = False,
+    points,
+    config: ReconstructionConfig | None = None,
+    *,
+    viewpoints=None,
+    progress: bool = False,
     **overrides,
 ) -> Reconstruction:
     """Reconstruct a triangle mesh from a point cloud (Hoppe et al. 1992).
@@ -126,10 +138,16 @@ def reconstruct(
             _check_spread(local)
         with stages.stage("parameters"):
             parameters = estimate_parameters(
-                local, k=config.radius_k, quantile=config.quantile,
-                noise_factor=config.noise_factor, cube_factor=config.cube_factor,
-                k_max=config.k_max, rho_delta=config.rho_delta, cube_size=config.cube_size,
-                phase1_fraction=config.phase1_fraction, min_neighbours=config.min_neighbours,
+                local,
+                k=config.radius_k,
+                quantile=config.quantile,
+                noise_factor=config.noise_factor,
+                cube_factor=config.cube_factor,
+                k_max=config.k_max,
+                rho_delta=config.rho_delta,
+                cube_size=config.cube_size,
+                phase1_fraction=config.phase1_fraction,
+                min_neighbours=config.min_neighbours,
                 rng=config.seed,
             )
         with stages.stage("neighbours"):
@@ -151,18 +169,31 @@ def reconstruct(
                     f"rho_delta={parameters.rho_delta:.4g}); increase rho_delta"
                 )
         with stages.stage("tangent planes"):
-            planes = tangent_planes(local[phase1], radius=parameters.rho_delta, k_min=config.k_min,
-                                    k_max=config.k_max,
-                                    neighbours=neighbours)
+            planes = tangent_planes(
+                local[phase1],
+                radius=parameters.rho_delta,
+                k_min=config.k_min,
+                k_max=config.k_max,
+                neighbours=neighbours,
+            )
         with stages.stage("orientation"):
             orientation = orient_normals(
-                planes.centroids, planes.normals, k=config.orient_k,
-                max_edge=2.0 * parameters.rho_delta, neighbours=neighbours, viewpoints=viewpoints,
+                planes.centroids,
+                planes.normals,
+                k=config.orient_k,
+                max_edge=2.0 * parameters.rho_delta,
+                neighbours=neighbours,
+                viewpoints=viewpoints,
             )
             stats["orientation_components"] = orientation.n_components
         with stages.stage("signed distance"):
-            field_ = signed_distance(local, planes.centroids, orientation.normals,
-                                     cube_size=parameters.cube_size, radius=parameters.rho_delta)
+            field_ = signed_distance(
+                local,
+                planes.centroids,
+                orientation.normals,
+                cube_size=parameters.cube_size,
+                radius=parameters.rho_delta,
+            )
             stats["grid_vertices"] = int(field_.values.size)
             stats["undefined_grid_vertices"] = int(np.count_nonzero(np.isnan(field_.values)))
         with stages.stage("contour"):
@@ -170,7 +201,8 @@ def reconstruct(
             mesh, stats["bowtie_vertices_split"] = split_nonmanifold_vertices(mesh)
             mesh, stats["small_holes_filled"] = fill_small_holes(mesh, config.max_hole_edges)
             mesh, stats["small_components_dropped"] = remove_small_components(
-                mesh, config.min_component_faces)
+                mesh, config.min_component_faces
+            )
             if mesh.n_faces == 0:
                 raise ReconstructionError(
                     f"no surface: no cube of size {parameters.cube_size:.4g} has eight defined "
@@ -182,8 +214,15 @@ def reconstruct(
     mesh = Mesh(vertices=mesh.vertices + offset, faces=mesh.faces)
     stats.update(_mesh_stats(mesh))
     return Reconstruction(
-        mesh=mesh, offset=offset, points=local[phase1], parameters=parameters, planes=planes,
-        orientation=orientation, field=field_, config=config, stats=stats,
+        mesh=mesh,
+        offset=offset,
+        points=local[phase1],
+        parameters=parameters,
+        planes=planes,
+        orientation=orientation,
+        field=field_,
+        config=config,
+        stats=stats,
         timings=dict(stages.timings),
     )
 

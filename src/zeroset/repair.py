@@ -9,7 +9,12 @@ from scipy.sparse.csgraph import connected_components
 from .topology import boundary_loops, edge_face_counts, face_components, half_edges
 from .types import Mesh
 
-__all__ = ["fill_small_holes", "keep_faces", "remove_small_components", "split_nonmanifold_vertices"]
+__all__ = [
+    "fill_small_holes",
+    "keep_faces",
+    "remove_small_components",
+    "split_nonmanifold_vertices",
+]
 
 
 def keep_faces(mesh: Mesh, keep: np.ndarray) -> Mesh:
@@ -20,7 +25,7 @@ def keep_faces(mesh: Mesh, keep: np.ndarray) -> Mesh:
 
 
 def remove_small_components(mesh: Mesh, min_faces: int) -> tuple[Mesh, int]:
-    """Drop connected components with fewer than `min_faces` faces; return the mesh and how many went."""
+    """Drop components with fewer than `min_faces` faces; return the mesh and how many went."""
     n_components, label = face_components(mesh.faces, mesh.n_vertices)
     if n_components == 0:
         return mesh, 0

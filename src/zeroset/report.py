@@ -46,10 +46,16 @@ def reconstruction_report(result: Reconstruction, *, source: str | None = None) 
 def format_report(report: dict) -> str:
     """Render a report from :func:`reconstruction_report` as a few aligned lines of text."""
     stats = report["stats"]
-    removed = [f"{stats[key]} {label}" for key, label in (
-        ("cropped", "cropped"), ("sampled_out", "sampled out"), ("voxel_merged", "merged by voxels"),
-        ("outliers", "outliers dropped"),
-    ) if key in stats]
+    removed = [
+        f"{stats[key]} {label}"
+        for key, label in (
+            ("cropped", "cropped"),
+            ("sampled_out", "sampled out"),
+            ("voxel_merged", "merged by voxels"),
+            ("outliers", "outliers dropped"),
+        )
+        if key in stats
+    ]
     lines = [
         f"points      {stats['input_points']:,} in; {', '.join(removed)}; "
         f"{stats['phase1_points']:,} used for tangent planes",
@@ -63,7 +69,8 @@ def format_report(report: dict) -> str:
         f"repairs     {stats['small_holes_filled']} small hole(s) closed, "
         f"{stats['small_components_dropped']} tiny component(s) dropped, "
         f"{stats['bowtie_vertices_split']} bow-tie vertex(es) split",
-        "seconds     " + ", ".join(f"{name} {sec:.2f}" for name, sec in report["timings"].items())
+        "seconds     "
+        + ", ".join(f"{name} {sec:.2f}" for name, sec in report["timings"].items())
         + f"; total {report['total_seconds']:.2f}",
     ]
     return "\n".join(lines)

@@ -1,4 +1,4 @@
-"""Seeded point samples of analytic surfaces, with their exact distance functions, for tests and demos."""
+"""Seeded samples of analytic surfaces with their exact distance functions, for tests and demos."""
 
 from __future__ import annotations
 
@@ -35,7 +35,7 @@ class Sample:
 
 
 def add_noise(points: np.ndarray, sigma: float, *, rng=None) -> np.ndarray:
-    """Return `points` (N, 3) plus isotropic Gaussian noise of standard deviation `sigma` per axis."""
+    """Return `points` (N, 3) plus Gaussian noise of standard deviation `sigma` on each axis."""
     if sigma == 0:
         return points.copy()
     return points + require_rng(rng).normal(0.0, positive(sigma, "sigma"), size=points.shape)
@@ -89,10 +89,14 @@ def sample_cylinder(
         beyond = np.maximum(0.0, np.maximum(x[:, 2] - length, -x[:, 2]))
         return np.hypot(np.hypot(x[:, 0], x[:, 1]) - radius, beyond)
 
-    return Sample(add_noise(clean, noise, rng=rng), normals, distance, 2.0 * np.pi * radius * length)
+    return Sample(
+        add_noise(clean, noise, rng=rng), normals, distance, 2.0 * np.pi * radius * length
+    )
 
 
-def sample_sphere(n: int, *, radius: float = 1.0, centre=(0.0, 0.0, 0.0), noise: float = 0.0, rng=None) -> Sample:
+def sample_sphere(
+    n: int, *, radius: float = 1.0, centre=(0.0, 0.0, 0.0), noise: float = 0.0, rng=None
+) -> Sample:
     """Sample a sphere uniformly.
 
     Examples
@@ -112,7 +116,9 @@ def sample_sphere(n: int, *, radius: float = 1.0, centre=(0.0, 0.0, 0.0), noise:
     return Sample(points, normals, distance, 4.0 * np.pi * radius**2)
 
 
-def sample_torus(n: int, *, major: float = 1.0, minor: float = 0.35, noise: float = 0.0, rng=None) -> Sample:
+def sample_torus(
+    n: int, *, major: float = 1.0, minor: float = 0.35, noise: float = 0.0, rng=None
+) -> Sample:
     """Sample a z-axis torus uniformly (rejection on the area element R + r cos v)."""
     rng = require_rng(rng)
     u = np.empty(0)

@@ -38,7 +38,7 @@ def is_edge_manifold(faces: np.ndarray) -> bool:
 
 
 def is_consistently_oriented(faces: np.ndarray) -> bool:
-    """Whether no directed edge occurs twice (neighbouring faces traverse shared edges oppositely)."""
+    """Whether no directed edge occurs twice (neighbouring faces run shared edges oppositely)."""
     half = half_edges(faces)
     return np.unique(half, axis=0).shape[0] == half.shape[0]
 
@@ -50,8 +50,9 @@ def boundary_loops(faces: np.ndarray) -> list[np.ndarray]:
     :func:`split_nonmanifold_vertices`), so every boundary vertex starts one boundary edge.
     """
     half = half_edges(faces)
-    _, inverse, counts = np.unique(np.sort(half, axis=1), axis=0, return_inverse=True,
-                                   return_counts=True)
+    _, inverse, counts = np.unique(
+        np.sort(half, axis=1), axis=0, return_inverse=True, return_counts=True
+    )
     border = half[counts[inverse.reshape(-1)] == 1]
     if border.shape[0] == 0:
         return []

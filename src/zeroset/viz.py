@@ -15,7 +15,11 @@ __all__ = ["preview"]
 
 
 def preview(
-    mesh: Mesh, path: str | os.PathLike, *, title: str | None = None, max_faces: int = 40_000,
+    mesh: Mesh,
+    path: str | os.PathLike,
+    *,
+    title: str | None = None,
+    max_faces: int = 40_000,
     rng=0,
 ) -> Path:
     """Draw `mesh` shaded from two viewpoints and save it as a PNG.
@@ -46,7 +50,9 @@ def preview(
         raise InputError(f"{target}: directory {target.parent} does not exist")
     faces = mesh.faces
     if faces.shape[0] > max_faces:
-        faces = faces[np.sort(np.random.default_rng(rng).choice(faces.shape[0], max_faces, replace=False))]
+        faces = faces[
+            np.sort(np.random.default_rng(rng).choice(faces.shape[0], max_faces, replace=False))
+        ]
     triangles = mesh.vertices[faces]
     normals = np.cross(triangles[:, 1] - triangles[:, 0], triangles[:, 2] - triangles[:, 0])
     normals /= np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-300)

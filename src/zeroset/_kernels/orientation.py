@@ -34,7 +34,11 @@ def _propagate_signs(order, predecessors, normals, root_sign, signs):
         if p < 0 or p >= n:
             signs[v] = root_sign[v]
             continue
-        dot = normals[p, 0] * normals[v, 0] + normals[p, 1] * normals[v, 1] + normals[p, 2] * normals[v, 2]
+        dot = (
+            normals[p, 0] * normals[v, 0]
+            + normals[p, 1] * normals[v, 1]
+            + normals[p, 2] * normals[v, 2]
+        )
         signs[v] = signs[p] if dot >= 0.0 else -signs[p]
 
 

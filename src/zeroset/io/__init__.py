@@ -22,8 +22,16 @@ from ..types import Mesh, PointCloud
 from . import _mesh, _numpy, _ply, _text
 from ._atomic import atomic_target
 
-__all__ = ["MESH_FORMATS", "POINT_FORMATS", "atomic_target", "read_mesh", "read_points",
-           "write_json", "write_mesh", "write_points"]
+__all__ = [
+    "MESH_FORMATS",
+    "POINT_FORMATS",
+    "atomic_target",
+    "read_mesh",
+    "read_points",
+    "write_json",
+    "write_mesh",
+    "write_points",
+]
 
 _POINT_READERS = {
     ".csv": _text.read_points,
@@ -39,10 +47,18 @@ _POINT_WRITERS = {
     ".ply": _ply.write_points,
     ".xyz": _text.write_points,
 }
-_MESH_READERS = {".obj": _mesh.read_mesh, ".off": _mesh.read_mesh, ".ply": _mesh.read_mesh,
-                 ".stl": _mesh.read_mesh}
-_MESH_WRITERS = {".obj": _mesh.write_obj, ".off": _mesh.write_off, ".ply": _mesh.write_ply,
-                 ".stl": _mesh.write_stl}
+_MESH_READERS = {
+    ".obj": _mesh.read_mesh,
+    ".off": _mesh.read_mesh,
+    ".ply": _mesh.read_mesh,
+    ".stl": _mesh.read_mesh,
+}
+_MESH_WRITERS = {
+    ".obj": _mesh.write_obj,
+    ".off": _mesh.write_off,
+    ".ply": _mesh.write_ply,
+    ".stl": _mesh.write_stl,
+}
 
 #: Suffixes `read_points` understands.
 POINT_FORMATS: tuple[str, ...] = tuple(sorted(_POINT_READERS))
@@ -100,7 +116,8 @@ def read_points(path: str | os.PathLike) -> PointCloud:
         points = _checked(as_points, raw["points"], "points")
         extras = {
             name: _checked(as_points, raw[name], name)
-            for name in ("normals", "viewpoints") if raw.get(name) is not None
+            for name in ("normals", "viewpoints")
+            if raw.get(name) is not None
         }
         for name, values in extras.items():
             if len(values) != len(points):
@@ -224,8 +241,9 @@ def write_mesh(path: str | os.PathLike, mesh, *, binary: bool = True) -> Path:
     """
     target, writer = _writable(path, _MESH_WRITERS, "mesh")
     if not (hasattr(mesh, "vertices") and hasattr(mesh, "faces")):
-        raise TypeError(f"mesh must have vertices and faces (a zeroset Mesh); "
-                        f"got {type(mesh).__name__}")
+        raise TypeError(
+            f"mesh must have vertices and faces (a zeroset Mesh); got {type(mesh).__name__}"
+        )
     with _about(path, "write"):
         vertices = as_points(mesh.vertices, "mesh vertices")
         faces = as_faces(mesh.faces, len(vertices), "mesh faces")
@@ -302,4 +320,3 @@ def _json_default(value):
     if isinstance(value, np.ndarray):
         return value.tolist()
     raise TypeError(f"cannot write {type(value).__name__} as JSON")
-

@@ -58,8 +58,12 @@ def write_obj(path: Path, vertices: np.ndarray, faces: np.ndarray, *, binary: bo
     import trimesh
 
     text = trimesh.exchange.obj.export_obj(
-        _trimesh(vertices, faces), include_normals=False, include_color=False,
-        include_texture=False, digits=_DIGITS, header=None,
+        _trimesh(vertices, faces),
+        include_normals=False,
+        include_color=False,
+        include_texture=False,
+        digits=_DIGITS,
+        header=None,
     )
     path.write_text(text, encoding="utf-8")
 

@@ -61,12 +61,19 @@ def read_points(path: Path) -> dict[str, np.ndarray | None]:
         if layout is None:
             return {"points": np.zeros((0, 3)), "normals": None}
         if layout.columns < 3:
-            raise InputError(f"line {layout.first_line} has {_columns(layout.columns)}; "
-                             "expected at least 3")
+            raise InputError(
+                f"line {layout.first_line} has {_columns(layout.columns)}; expected at least 3"
+            )
         try:
             table = np.loadtxt(
-                path, dtype=np.float64, comments="#", delimiter=layout.delimiter,
-                skiprows=layout.skiprows, usecols=range(layout.used), ndmin=2, encoding=_ENCODING,
+                path,
+                dtype=np.float64,
+                comments="#",
+                delimiter=layout.delimiter,
+                skiprows=layout.skiprows,
+                usecols=range(layout.used),
+                ndmin=2,
+                encoding=_ENCODING,
             )
         except ValueError as exc:
             raise InputError(_diagnose(path, layout) or f"cannot parse ({exc})") from exc
