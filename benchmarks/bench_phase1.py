@@ -88,8 +88,14 @@ def run_child(n: int, repeat: int) -> dict:
 
 def run_size(n: int, repeat: int) -> dict:
     """Run one size in a fresh interpreter and return its JSON report."""
-    command = [sys.executable, str(Path(__file__).resolve()), "--child", str(n),
-               "--repeat", str(repeat)]
+    command = [
+        sys.executable,
+        str(Path(__file__).resolve()),
+        "--child",
+        str(n),
+        "--repeat",
+        str(repeat),
+    ]
     done = subprocess.run(command, capture_output=True, text=True, check=False)
     if done.returncode != 0:
         raise RuntimeError(f"child for n={n} failed ({done.returncode}):\n{done.stderr}")
@@ -104,8 +110,7 @@ def summarise(report: dict) -> dict:
     runs = report["runs"]
     stages = list(runs[0]["stages"])
     medians = {name: statistics.median(run["stages"][name] for run in runs) for name in stages}
-    medians[OUTSIDE] = statistics.median(run["total"] - sum(run["stages"].values())
-                                         for run in runs)
+    medians[OUTSIDE] = statistics.median(run["total"] - sum(run["stages"].values()) for run in runs)
     slowest = max(stages, key=medians.__getitem__)
     return {
         "stages": medians,
@@ -210,8 +215,10 @@ def render(reports: list[dict], machine: dict, command: str, repeat: int) -> str
         )
 
     out += ["", "## Targets", "", f"Target: {TARGET_TEXT}.", ""]
-    target = next((pair for pair in zip(reports, summaries, strict=True)
-                   if pair[0]["n"] == TARGET_POINTS), None)
+    target = next(
+        (pair for pair in zip(reports, summaries, strict=True) if pair[0]["n"] == TARGET_POINTS),
+        None,
+    )
     if target is None:
         out.append(f"Not measured: run with `--sizes {TARGET_POINTS}`.")
     else:
@@ -227,8 +234,11 @@ def render(reports: list[dict], machine: dict, command: str, repeat: int) -> str
         ]
         cores = machine["usable_cpus"]
         if cores != TARGET_CORES:
-            out += ["", f"Measured on {cores} usable cores, not {TARGET_CORES}: the verdicts "
-                        "hold for this machine only."]
+            out += [
+                "",
+                f"Measured on {cores} usable cores, not {TARGET_CORES}: the verdicts "
+                "hold for this machine only.",
+            ]
         else:
             out += ["", f"Measured on {cores} cores, as the target specifies."]
 
@@ -264,6 +274,7 @@ def write_atomic(path: Path, text: str) -> None:
     try:
         with os.fdopen(handle, "w", encoding="utf-8") as file:
             file.write(text)
+        os.chmod(temporary, 0o644)  # mkstemp makes it private; a document is world-readable
         os.replace(temporary, path)
     except BaseException:
         Path(temporary).unlink(missing_ok=True)
@@ -272,11 +283,20 @@ def write_atomic(path: Path, text: str) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
-    parser.add_argument("--sizes", type=int, nargs="+", default=list(DEFAULT_SIZES),
-                        help="point counts (default: %(default)s)")
+    parser.add_argument(
+        "--sizes",
+        type=int,
+        nargs="+",
+        default=list(DEFAULT_SIZES),
+        help="point counts (default: %(default)s)",
+    )
     parser.add_argument("--repeat", type=int, default=3, help="timed runs per size")
-    parser.add_argument("--output", type=Path, default=DEFAULT_OUTPUT,
-                        help="Markdown report (default: docs/benchmarks.md)")
+    parser.add_argument(
+        "--output",
+        type=Path,
+        default=DEFAULT_OUTPUT,
+        help="Markdown report (default: docs/benchmarks.md)",
+    )
     parser.add_argument("--child", type=int, default=None, help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     if args.repeat < 1 or any(n < 1 for n in args.sizes):
@@ -291,11 +311,17 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{n:>10,} points ...", end=" ", flush=True)
         report = run_size(n, args.repeat)
         summary = summarise(report)
-        print(f"median {summary['total']:.3f} s, peak RSS {report['peak_rss_mib']:.0f} MiB, "
-              f"slowest stage {summary['slowest']}", flush=True)
+        print(
+            f"median {summary['total']:.3f} s, peak RSS {report['peak_rss_mib']:.0f} MiB, "
+            f"slowest stage {summary['slowest']}",
+            flush=True,
+        )
         reports.append(report)
-    command = ("python benchmarks/bench_phase1.py --sizes "
-               + " ".join(str(n) for n in args.sizes) + f" --repeat {args.repeat}")
+    command = (
+        "python benchmarks/bench_phase1.py --sizes "
+        + " ".join(str(n) for n in args.sizes)
+        + f" --repeat {args.repeat}"
+    )
     write_atomic(args.output, render(reports, machine_info(), command, args.repeat))
     print(f"wrote {args.output}")
     return 0

@@ -52,8 +52,9 @@ def case(request):
 
 
 def _run(benchmark, target, *args, rounds: int = ROUNDS, **kwargs):
-    return benchmark.pedantic(target, args=args, kwargs=kwargs, rounds=rounds, iterations=1,
-                              warmup_rounds=1)
+    return benchmark.pedantic(
+        target, args=args, kwargs=kwargs, rounds=rounds, iterations=1, warmup_rounds=1
+    )
 
 
 def test_pipeline(benchmark, case):
@@ -68,8 +69,15 @@ def test_pipeline(benchmark, case):
 def test_tangent_planes(benchmark, case):
     result = case["result"]
     config = result.config
-    planes = _run(benchmark, tangent_planes, result.points, radius=result.parameters.rho_delta,
-                  k_min=config.k_min, k_max=config.k_max, neighbours=case["neighbours"])
+    planes = _run(
+        benchmark,
+        tangent_planes,
+        result.points,
+        radius=result.parameters.rho_delta,
+        k_min=config.k_min,
+        k_max=config.k_max,
+        neighbours=case["neighbours"],
+    )
     assert planes.normals.shape == result.points.shape
     np.testing.assert_allclose(np.linalg.norm(planes.normals, axis=1), 1.0, atol=1e-9)
     # On a pipe of radius 0.25 along z, the normals are nearly horizontal.
@@ -79,9 +87,15 @@ def test_tangent_planes(benchmark, case):
 def test_orient_normals(benchmark, case):
     result = case["result"]
     planes = result.planes
-    orientation = _run(benchmark, orient_normals, planes.centroids, planes.normals,
-                       k=result.config.orient_k, max_edge=2.0 * result.parameters.rho_delta,
-                       neighbours=case["neighbours"])
+    orientation = _run(
+        benchmark,
+        orient_normals,
+        planes.centroids,
+        planes.normals,
+        k=result.config.orient_k,
+        max_edge=2.0 * result.parameters.rho_delta,
+        neighbours=case["neighbours"],
+    )
     np.testing.assert_allclose(np.abs(orientation.normals), np.abs(planes.normals))
     assert orientation.n_components == 1
     # Consistent orientation on a pipe: all outward or all inward.
@@ -94,9 +108,15 @@ def test_orient_normals(benchmark, case):
 def test_signed_distance(benchmark, case):
     result = case["result"]
     parameters = result.parameters
-    field = _run(benchmark, signed_distance, result.points, result.planes.centroids,
-                 result.orientation.normals, cube_size=parameters.cube_size,
-                 radius=parameters.rho_delta)
+    field = _run(
+        benchmark,
+        signed_distance,
+        result.points,
+        result.planes.centroids,
+        result.orientation.normals,
+        cube_size=parameters.cube_size,
+        radius=parameters.rho_delta,
+    )
     defined = ~np.isnan(field.values)
     assert defined.sum() > 0
     # Away from the wall, the sign of f tells inside from outside of the pipe (radius 0.25),
