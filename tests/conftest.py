@@ -1,13 +1,20 @@
 """Shared fixtures: seeded synthetic clouds and their reconstructions (built once per session)."""
 
+import os
+
 import numpy as np
 import pytest
+from hypothesis import settings
 
 from zeroset import reconstruct
 from zeroset.synthetic import sample_cylinder, sample_sphere, sample_torus, two_spheres
 from zeroset.types import Mesh
 
 PIPE_NOISE = 0.002
+
+settings.register_profile("ci", derandomize=True, max_examples=40, deadline=None)
+settings.register_profile("dev", max_examples=40, deadline=None)
+settings.load_profile("ci" if os.environ.get("CI") else "dev")
 
 
 @pytest.fixture

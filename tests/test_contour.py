@@ -2,6 +2,8 @@
 
 import numpy as np
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
 from zeroset import _lattice, topology
 from zeroset._mc_table import case_table
@@ -48,20 +50,30 @@ def test_sphere_field_gives_closed_outward_genus_zero_mesh():
     assert np.abs(_sphere(mesh.vertices)).max() < 0.05**2
 
 
-@pytest.mark.parametrize("seed", range(4))
-def test_random_field_with_holes_is_edge_manifold_and_oriented(seed):
+@given(
+    seed=st.integers(0, 2**32 - 1),
+    size=st.integers(2, 9),
+    undefined=st.floats(0.0, 0.3),
+    cube=st.floats(0.01, 100.0),
+)
+def test_any_field_gives_a_valid_edge_manifold_oriented_mesh(seed, size, undefined, cube):
     rng = np.random.default_rng(seed)
-    steps = np.arange(10)
+    steps = np.arange(size)
     ijk = np.stack(np.meshgrid(steps, steps, steps, indexing="ij"), axis=-1).reshape(-1, 3)
-    values = rng.normal(size=len(ijk))
-    values[rng.random(len(ijk)) < 0.1] = np.nan
-    field = DistanceField(vertices_ijk=ijk, values=values, origin=np.zeros(3), cube_size=1.0)
+    values = rng.normal(size=len(ijk)) * cube
+    values[rng.random(len(ijk)) < undefined] = np.nan
+    field = DistanceField(vertices_ijk=ijk, values=values, origin=np.zeros(3), cube_size=cube)
     mesh = marching_cubes(field)
-    assert mesh.n_faces > 0
+    assert mesh.faces.min(initial=0) >= 0 and mesh.faces.max(initial=-1) < mesh.n_vertices
     assert topology.is_edge_manifold(mesh.faces)
     assert topology.is_consistently_oriented(mesh.faces)
-    assert len(np.unique(np.sort(mesh.faces, axis=1), axis=0)) == mesh.n_faces
-    assert np.all(np.sort(mesh.faces, axis=1)[:, :2] != np.sort(mesh.faces, axis=1)[:, 1:])
+    ordered = np.sort(mesh.faces, axis=1)
+    assert np.all(ordered[:, :2] != ordered[:, 1:])  # three distinct vertices per face
+    assert np.unique(ordered, axis=0).shape[0] == mesh.n_faces
+    # Every vertex lies on a lattice edge inside the grid.
+    grid = mesh.vertices / cube
+    assert np.all((grid >= -1e-9) & (grid <= size - 1 + 1e-9))
+    assert np.all(np.sum(np.abs(grid - np.round(grid)) > 1e-9, axis=1) <= 1)
 
 
 def test_cubes_with_an_undefined_corner_are_skipped():
