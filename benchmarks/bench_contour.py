@@ -53,9 +53,11 @@ def main() -> None:
         return skimage_marching_cubes(volume, 0.0, mask=mask), volume.size
 
     dense_s, ((verts, faces, _, _), cells) = _median_seconds(dense, args.repeat)
-    print(f"pipe {args.length} m{' diagonal' if args.tilt else ''}, points {args.points:,}; band vertices {field.values.size:,}; dense volume {cells:,}")
+    shape = "diagonal " if args.tilt else ""
+    print(f"{args.length} m {shape}pipe, {args.points:,} points")
+    print(f"band vertices {field.values.size:,}; dense volume {cells:,}")
     print(f"zeroset sparse band : {ours_s:.3f} s, {mesh.n_faces:,} faces")
-    print(f"skimage dense+mask  : {dense_s:.3f} s, {len(faces):,} faces (ratio {dense_s / ours_s:.1f}x)")
+    print(f"skimage dense+mask  : {dense_s:.3f} s, {len(faces):,} faces")
 
 
 if __name__ == "__main__":
