@@ -68,7 +68,7 @@ def preview(
         axes.add_collection3d(Poly3DCollection(triangles, facecolors=colours, linewidths=0))
         for setter, c in zip((axes.set_xlim, axes.set_ylim, axes.set_zlim), centre, strict=True):
             setter(c - half, c + half)
-        axes.set_box_aspect((1, 1, 1))
+        axes.set_box_aspect((1, 1, 1), zoom=1.35)
         axes.view_init(elev=elevation, azim=azimuth)
         axes.set_axis_off()
     figure.suptitle(title or f"{mesh.n_vertices:,} vertices, {mesh.n_faces:,} triangles")
