@@ -21,21 +21,30 @@ def test_parameters_scale_with_the_data(rng):
     a = estimate_parameters(points, rng=0)
     b = estimate_parameters(points * 1000.0, rng=0)
     assert b.rho_delta == pytest.approx(1000 * a.rho_delta, rel=1e-9)
-    assert b.phase1_fraction == pytest.approx(a.phase1_fraction)
+    assert b.averaging_cell == pytest.approx(1000 * a.averaging_cell, rel=1e-9)
 
 
-def test_denser_clouds_get_smaller_spacing_and_phase1_sampling(rng):
+def test_denser_clouds_get_smaller_spacing(rng):
     sparse = estimate_parameters(_noisy_plane(2_000, 0.0, rng), rng=0)
     dense = estimate_parameters(_noisy_plane(200_000, 0.002, rng), rng=0)
     assert dense.spacing < sparse.spacing / 5
-    assert sparse.phase1_fraction == 1.0 and dense.phase1_fraction < 0.5
+    assert dense.averaging_cell < sparse.averaging_cell
+
+
+def test_scan_lines_set_the_spacing_from_the_sparse_direction():
+    # Lines 1 mm apart along x, 20 mm apart along y: the k nearest lie on one line.
+    x, y = np.meshgrid(np.arange(0, 1, 0.001), np.arange(0, 1, 0.02))
+    points = np.c_[x.ravel(), y.ravel(), np.zeros(x.size)]
+    params = estimate_parameters(points, rng=0)
+    assert params.spacing >= 0.02
+    assert params.rho_delta < 0.05
 
 
 def test_given_values_win_and_are_noted(rng):
     params = estimate_parameters(
-        _noisy_plane(1_000, 0.0, rng), rho_delta=0.5, cube_size=0.25, phase1_fraction=0.7
+        _noisy_plane(1_000, 0.0, rng), rho_delta=0.5, cube_size=0.25, averaging_cell=0.1
     )
-    assert (params.rho_delta, params.cube_size, params.phase1_fraction) == (0.5, 0.25, 0.7)
+    assert (params.rho_delta, params.cube_size, params.averaging_cell) == (0.5, 0.25, 0.1)
     assert sum("given" in note for note in params.notes) == 3
 
 
@@ -45,7 +54,7 @@ def test_given_values_win_and_are_noted(rng):
         ("quantile", 1.5, "quantile must lie in"),
         ("rho_delta", -1.0, "rho_delta must be a positive number"),
         ("cube_size", 0.0, "cube_size must be a positive number"),
-        ("phase1_fraction", 2.0, "phase1_fraction must lie in"),
+        ("averaging_cell", -1.0, "averaging_cell must be >= 0"),
         ("k", 0, "k must be a positive integer"),
     ],
 )

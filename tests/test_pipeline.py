@@ -183,3 +183,16 @@ def test_radius_far_below_the_spacing_finds_no_surface():
 def test_unknown_option_is_a_type_error():
     with pytest.raises(TypeError, match="unknown reconstruction parameter"):
         reconstruct(np.zeros((10, 3)), not_an_option=1)
+
+
+def test_scan_lines_far_apart_reconstruct_in_one_piece():
+    # Lines along the pipe 1 mm apart within a line, 4 degrees (17 mm) between lines: the
+    # nearest neighbours of a point all lie on its own line.
+    rng = np.random.default_rng(12)
+    theta, z = np.meshgrid(np.radians(np.arange(0, 360, 4.0)), np.arange(0, 1, 0.001))
+    points = np.c_[0.25 * np.cos(theta.ravel()), 0.25 * np.sin(theta.ravel()), z.ravel()]
+    result = reconstruct(points + rng.normal(0, 0.001, points.shape))
+    assert result.stats["mesh_components"] == 1
+    assert result.stats["boundary_loops"] == 2
+    radius = np.hypot(result.mesh.vertices[:, 0], result.mesh.vertices[:, 1])
+    assert np.abs(radius - 0.25).mean() < 0.002

@@ -3,7 +3,7 @@ import pytest
 
 from zeroset import InputError
 from zeroset.neighbours import knn
-from zeroset.prepare import crop, drop_outliers, random_sample, voxel_sample
+from zeroset.prepare import average_in_cells, crop, drop_outliers, random_sample, voxel_sample
 
 
 def test_random_sample_is_seeded_and_sized():
@@ -37,3 +37,15 @@ def test_isolated_points_are_outliers(rng):
     keep = drop_outliers(knn(points, 8), radius=0.1, min_neighbours=4)
     assert not keep[-2:].any()
     assert keep[:-2].mean() > 0.95
+
+
+def test_average_in_cells_gives_one_mean_per_cell(rng):
+    points = rng.uniform(0, 1, (5000, 3))
+    labels = rng.normal(size=(5000, 3))
+    means, label_means = average_in_cells(points, 0.5, labels)
+    assert means.shape == label_means.shape == (8, 3)
+    cells = np.floor(means / 0.5)
+    assert np.unique(cells, axis=0).shape[0] == 8  # each mean stays in its own cell
+    in_first = np.all(np.floor(points / 0.5) == cells[0], axis=1)
+    np.testing.assert_allclose(means[0], points[in_first].mean(axis=0))
+    np.testing.assert_allclose(label_means[0], labels[in_first].mean(axis=0))

@@ -32,8 +32,8 @@ class ReconstructionConfig:
     k_max: int = _opt(16, "largest neighbourhood for a tangent plane, the point included")
     min_neighbours: int = _opt(4, "points with fewer others within rho_delta are outliers")
     orient_k: int = _opt(8, "neighbours per point in the orientation graph")
-    phase1_fraction: float | None = _opt(
-        None, "share of the points the tangent planes use (default: as many as needed)"
+    averaging_cell: float | None = _opt(
+        None, "average the points in cubic cells of this size before fitting planes (0: never)"
     )
     sample: float | None = _opt(None, "keep this random fraction of the points, in (0, 1]")
     voxel_size: float | None = _opt(None, "keep one point per voxel of this size")

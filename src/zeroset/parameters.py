@@ -12,9 +12,12 @@ from .types import Parameters
 
 __all__ = ["estimate_parameters"]
 
-#: Points, and neighbours of each, used to measure the noise level.
-NOISE_ROWS = 2_000
-NOISE_K = 64
+#: Points, and neighbours of each, used for the direction-balanced spacing and the noise.
+WIDE_ROWS = 2_000
+WIDE_K = 64
+#: Directions around a point, and how many must hold a neighbour within the spacing.
+SECTORS = 8
+SECTORS_NEEDED = 6
 
 
 def estimate_parameters(
@@ -28,20 +31,24 @@ def estimate_parameters(
     k_max: int = 16,
     rho_delta: float | None = None,
     cube_size: float | None = None,
-    phase1_fraction: float | None = None,
+    averaging_cell: float | None = None,
     min_neighbours: int = 4,
     max_samples: int = 20_000,
     rng=None,
 ) -> Parameters:
-    """Choose rho+delta, the cube size and the share of points phase 1 needs.
+    """Choose rho+delta, the cube size and the cell the points are averaged in.
 
-    rho (sampling density) is the `quantile` of the distance from a point to its `k`-th
-    nearest neighbour: nine points in ten (by default) have `k` neighbours within it.
-    delta (noise) is `noise_factor` times the noise level sigma, the median RMS distance of
-    those neighbourhoods from their best-fit plane. rho+delta is their sum, and the cube
-    size `cube_factor` times it. Where a ball of radius rho+delta holds far more than
-    `k_max` points (noisy, dense scans), a random share of the points is enough for the
-    tangent planes; `phase1_fraction` is that share.
+    rho (sampling density) must be large enough that a ball of that radius reaches
+    neighbours on every side of a point. Two measures are taken on a seeded sample of
+    points and the larger `quantile` wins: the distance to the `k`-th nearest neighbour
+    (isotropic sampling), and the radius that reaches a neighbour in 6 of 8 directions
+    around the point in its tangent plane (laser scans: points a millimetre apart along a
+    scan line and centimetres apart between lines). delta (noise) is `noise_factor` times
+    the noise level sigma, the median RMS distance of neighbourhoods of radius rho+delta
+    from their best-fit plane. The cube size is `cube_factor` (rho+delta). Where a ball of
+    radius rho+delta holds far more points than a plane fit needs (dense, noisy or
+    anisotropic scans), points are averaged in cubic cells first; `averaging_cell` is the
+    cell size (0: no averaging).
 
     Parameters
     ----------
@@ -58,7 +65,7 @@ def estimate_parameters(
         Cube size over rho+delta when `cube_size` is not given (thesis: 1.5).
     k_max : int
         Largest neighbourhood used for a tangent plane.
-    rho_delta, cube_size, phase1_fraction : float, optional
+    rho_delta, cube_size, averaging_cell : float, optional
         Given values, used as they are.
     min_neighbours : int
         Outlier threshold: fewer other points within rho+delta make a point an outlier.
@@ -70,7 +77,7 @@ def estimate_parameters(
     -------
     Parameters
         ``rho_delta``, ``cube_size``, ``min_neighbours``, ``spacing``, ``noise``,
-        ``phase1_fraction`` and a note on each.
+        ``averaging_cell`` and a note on each.
 
     Raises
     ------
@@ -102,14 +109,14 @@ def estimate_parameters(
     kk = min(k + 1, n)
     distances, indices = tree.query(points[rows], k=kk, workers=-1)
     kth = distances[:, -1]
-    spacing = float(np.quantile(kth, quantile))
+    wide_distances, wide_indices = tree.query(points[rows[:WIDE_ROWS]], k=min(WIDE_K, n), workers=-1)
+    isotropic = float(np.quantile(kth, quantile))
+    balanced = float(np.quantile(_sector_radius(points, wide_indices, wide_distances), quantile))
+    spacing = max(isotropic, balanced)
     noise = _plane_residual(points, indices, distances, np.inf)
     if noise_factor > 0.0:
         # Small neighbourhoods absorb noise into the plane fit and underestimate it; widen
         # the neighbourhood to the radius the noise calls for until the estimate settles.
-        wide_distances, wide_indices = tree.query(
-            points[rows[:NOISE_ROWS]], k=min(NOISE_K, n), workers=-1
-        )
         for _ in range(4):
             radius = spacing + noise_factor * noise
             wider = _plane_residual(points, wide_indices, wide_distances, radius)
@@ -118,8 +125,9 @@ def estimate_parameters(
             if settled:
                 break
     notes = [
-        f"spacing = {spacing:.6g}: {quantile:g} quantile of the distance to the "
-        f"{kk - 1}-th nearest neighbour (median {np.median(kth):.6g})",
+        f"spacing = {spacing:.6g}: {quantile:g} quantile of the larger of the distance to the "
+        f"{kk - 1}-th neighbour ({isotropic:.6g}) and the radius reaching neighbours in "
+        f"{SECTORS_NEEDED} of {SECTORS} directions ({balanced:.6g})",
         f"noise = {noise:.6g}: median RMS distance of neighbourhoods of radius "
         f"spacing + {noise_factor:g} x noise from their plane",
     ]
@@ -140,18 +148,19 @@ def estimate_parameters(
     else:
         cube_size = positive(cube_size, "cube_size")
         notes.append(f"cube_size = {cube_size:.6g}: given")
-    if phase1_fraction is None:
-        # A ball of radius r holds about kk (r / median kth)^2 points of a surface.
-        expected = kk * (rho_delta / max(float(np.median(kth)), 1e-300)) ** 2
-        phase1_fraction = float(min(1.0, 1.5 * k_max / expected))
+    if averaging_cell is None:
+        # A ball of radius rho+delta meets about pi (rho+delta / cell)^2 cells of a surface.
+        wanted = 1.5 * k_max
+        averaging_cell = rho_delta * float(np.sqrt(np.pi / wanted))
         notes.append(
-            f"phase1_fraction = {phase1_fraction:.3g}: a ball of radius rho_delta holds "
-            f"~{expected:.0f} points; tangent planes need ~{1.5 * k_max:.0f}"
+            f"averaging_cell = {averaging_cell:.6g}: rho_delta x sqrt(pi / {wanted:g}), so that a "
+            f"ball of radius rho_delta meets ~{wanted:g} cells"
         )
     else:
-        if not 0.0 < phase1_fraction <= 1.0:
-            raise InputError(f"phase1_fraction must lie in (0, 1]; got {phase1_fraction!r}")
-        notes.append(f"phase1_fraction = {phase1_fraction:.3g}: given")
+        averaging_cell = float(averaging_cell)
+        if not averaging_cell >= 0.0:
+            raise InputError(f"averaging_cell must be >= 0; got {averaging_cell!r}")
+        notes.append(f"averaging_cell = {averaging_cell:.6g}: given")
     notes.append(f"min_neighbours = {min_neighbours}: fewer others within rho_delta is an outlier")
     return Parameters(
         rho_delta=rho_delta,
@@ -159,7 +168,7 @@ def estimate_parameters(
         min_neighbours=min_neighbours,
         spacing=spacing,
         noise=noise,
-        phase1_fraction=phase1_fraction,
+        averaging_cell=averaging_cell,
         notes=tuple(notes),
     )
 
@@ -175,3 +184,28 @@ def _plane_residual(points, indices, distances, radius) -> float:
         np.linalg.eigvalsh(covariances)[:, 0].clip(min=0.0) * counts / np.maximum(counts - 3, 1)
     )
     return float(np.sqrt(np.median(residual)))
+
+
+def _sector_radius(points, indices, distances) -> np.ndarray:
+    """Radius (R,) at which each row's point has a neighbour in SECTORS_NEEDED of SECTORS directions.
+
+    Directions are angular sectors in the plane of the neighbourhood's two largest principal
+    axes. A sector with no neighbour among the row's columns counts as the farthest one.
+    """
+    n_rows = indices.shape[0]
+    _, covariances, _ = centroid_covariance(
+        points, indices.astype(np.int64), distances, np.full(n_rows, np.inf)
+    )
+    axes = np.linalg.eigh(covariances)[1]
+    offsets = points[indices[:, 1:]] - points[indices[:, :1]]
+    angle = np.arctan2(
+        np.einsum("rkd,rd->rk", offsets, axes[:, :, 1]),
+        np.einsum("rkd,rd->rk", offsets, axes[:, :, 2]),
+    )
+    sector = np.floor((angle + np.pi) / (2.0 * np.pi) * SECTORS).astype(np.int64) % SECTORS
+    nearest = np.full((n_rows, SECTORS), np.inf)
+    np.minimum.at(nearest, (np.repeat(np.arange(n_rows), offsets.shape[1]), sector.ravel()),
+                  distances[:, 1:].ravel())
+    nearest = np.minimum(nearest, distances[:, -1:])
+    return np.sort(nearest, axis=1)[:, SECTORS_NEEDED - 1]
+

@@ -17,7 +17,7 @@ from .neighbours import knn, restrict, spatial_order
 from .normals import tangent_planes
 from .orientation import orient_normals
 from .parameters import estimate_parameters
-from .prepare import crop, drop_outliers, random_sample, voxel_sample
+from .prepare import average_in_cells, crop, drop_outliers, random_sample, voxel_sample
 from .repair import fill_small_holes, remove_small_components, split_nonmanifold_vertices
 from .types import DistanceField, Mesh, Orientation, Parameters, TangentPlanes
 
@@ -49,8 +49,8 @@ class Reconstruction:
     offset : (3,) float64
         Origin of the local frame in input coordinates.
     points : (N, 3) float64
-        The points the tangent planes were fitted to (after preparation, phase-1 sampling
-        and outlier removal), in the local frame.
+        The points the tangent planes were fitted to (after preparation, averaging in
+        cells and outlier removal), in the local frame.
     parameters : Parameters
     planes : TangentPlanes
     orientation : Orientation
@@ -146,31 +146,33 @@ def reconstruct(
                 k_max=config.k_max,
                 rho_delta=config.rho_delta,
                 cube_size=config.cube_size,
-                phase1_fraction=config.phase1_fraction,
+                averaging_cell=config.averaging_cell,
                 min_neighbours=config.min_neighbours,
                 rng=config.seed,
             )
         with stages.stage("neighbours"):
-            phase1 = np.arange(local.shape[0])
-            if parameters.phase1_fraction < 1.0:
-                phase1 = random_sample(phase1.size, parameters.phase1_fraction, rng=config.seed)
-            neighbours = knn(local[phase1], config.k_max)
+            phase1 = local
+            if parameters.averaging_cell > 0.0:
+                per_point = () if viewpoints is None or viewpoints.ndim == 1 else (viewpoints,)
+                phase1, *averaged = average_in_cells(local, parameters.averaging_cell, *per_point)
+                viewpoints = averaged[0] if averaged else viewpoints
+            neighbours = knn(phase1, config.k_max)
         with stages.stage("outliers"):
             keep = drop_outliers(neighbours, parameters.rho_delta, parameters.min_neighbours)
             stats["outliers"] = int(np.count_nonzero(~keep))
             phase1, neighbours = phase1[keep], restrict(neighbours, keep)
             if viewpoints is not None and viewpoints.ndim == 2:
-                viewpoints = viewpoints[phase1]
-            stats["phase1_points"] = phase1.size
-            if phase1.size < config.k_max:
+                viewpoints = viewpoints[keep]
+            stats["phase1_points"] = phase1.shape[0]
+            if phase1.shape[0] < config.k_max:
                 raise ReconstructionError(
-                    f"only {phase1.size} points are left after removing {stats['outliers']} "
+                    f"only {phase1.shape[0]} points are left after removing {stats['outliers']} "
                     f"outliers (fewer than {parameters.min_neighbours} neighbours within "
                     f"rho_delta={parameters.rho_delta:.4g}); increase rho_delta"
                 )
         with stages.stage("tangent planes"):
             planes = tangent_planes(
-                local[phase1],
+                phase1,
                 radius=parameters.rho_delta,
                 k_min=config.k_min,
                 k_max=config.k_max,
@@ -216,7 +218,7 @@ def reconstruct(
     return Reconstruction(
         mesh=mesh,
         offset=offset,
-        points=local[phase1],
+        points=phase1,
         parameters=parameters,
         planes=planes,
         orientation=orientation,

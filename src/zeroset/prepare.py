@@ -1,6 +1,6 @@
-"""Preparation of a raw cloud: sub-sampling, cropping and outlier removal (thesis 3.2.1, 3.2.8).
+"""Preparation of a raw cloud: sub-sampling, cropping, averaging, outliers (thesis 3.2.1, 3.2.8).
 
-Each function returns row indices or a mask into the input, so that per-point data
+The selections return row indices or a mask into the input, so that per-point data
 (normals, viewpoints) follow the points.
 """
 
@@ -12,7 +12,7 @@ from ._validate import as_vector3, positive, require_rng
 from .errors import InputError
 from .types import Neighbourhoods
 
-__all__ = ["crop", "drop_outliers", "random_sample", "voxel_sample"]
+__all__ = ["average_in_cells", "crop", "drop_outliers", "random_sample", "voxel_sample"]
 
 
 def random_sample(n_points: int, fraction: float, *, rng=None) -> np.ndarray:
@@ -64,6 +64,41 @@ def voxel_sample(points: np.ndarray, voxel_size: float) -> np.ndarray:
     first = np.ones(order.size, dtype=bool)
     first[1:] = voxel[order][1:] != voxel[order][:-1]
     return np.sort(order[first]).astype(np.int64)
+
+
+def average_in_cells(
+    points: np.ndarray, cell_size: float, *others: np.ndarray
+) -> tuple[np.ndarray, ...]:
+    """Replace the points in each occupied cubic cell by their mean.
+
+    Averaging evens out the density (one point per cell, however many the scanner put
+    there) and the noise (the mean of m points scatters sqrt(m) times less) before the
+    tangent planes are fitted.
+
+    Parameters
+    ----------
+    points : (N, 3) float64
+    cell_size : float
+        Cell edge length in data units; cells lie on the lattice ``cell_size * (i, j, k)``.
+    *others : (N, ...) float64
+        Per-point arrays (e.g. viewpoints) to average the same way.
+
+    Returns
+    -------
+    tuple of arrays
+        The (M, 3) cell means of `points`, then those of each of `others`, in cell order.
+    """
+    cell_size = positive(cell_size, "cell_size")
+    cells = np.floor(points / cell_size).astype(np.int64)
+    _, label, counts = np.unique(cells, axis=0, return_inverse=True, return_counts=True)
+    label = label.reshape(-1)
+    return tuple(
+        np.stack(
+            [np.bincount(label, weights=array[:, d]) / counts for d in range(array.shape[1])],
+            axis=1,
+        )
+        for array in (points, *others)
+    )
 
 
 def crop(points: np.ndarray, lower, upper) -> np.ndarray:

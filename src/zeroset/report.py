@@ -32,7 +32,7 @@ def reconstruction_report(result: Reconstruction, *, source: str | None = None) 
             "cube_size": params.cube_size,
             "spacing": params.spacing,
             "noise": params.noise,
-            "phase1_fraction": params.phase1_fraction,
+            "averaging_cell": params.averaging_cell,
             "min_neighbours": params.min_neighbours,
             "notes": list(params.notes),
         },

@@ -85,8 +85,9 @@ class Parameters:
         Sampling density rho: a quantile of the distance to the k-th neighbour.
     noise : float
         Noise level sigma: median RMS distance of small neighbourhoods from their plane.
-    phase1_fraction : float
-        Share of the points the tangent planes are computed from, in (0, 1].
+    averaging_cell : float
+        Size of the cubic cells the points are averaged in before the tangent planes are
+        fitted; 0 when the points are used as they are.
     notes : tuple of str
         One line per parameter: its value and where it came from.
     """
@@ -96,7 +97,7 @@ class Parameters:
     min_neighbours: int
     spacing: float
     noise: float
-    phase1_fraction: float = 1.0
+    averaging_cell: float = 0.0
     notes: tuple[str, ...] = field(default=())
 
 
