@@ -109,7 +109,9 @@ def estimate_parameters(
     kk = min(k + 1, n)
     distances, indices = tree.query(points[rows], k=kk, workers=-1)
     kth = distances[:, -1]
-    wide_distances, wide_indices = tree.query(points[rows[:WIDE_ROWS]], k=min(WIDE_K, n), workers=-1)
+    wide_distances, wide_indices = tree.query(
+        points[rows[:WIDE_ROWS]], k=min(WIDE_K, n), workers=-1
+    )
     isotropic = float(np.quantile(kth, quantile))
     balanced = float(np.quantile(_sector_radius(points, wide_indices, wide_distances), quantile))
     spacing = max(isotropic, balanced)
@@ -204,8 +206,10 @@ def _sector_radius(points, indices, distances) -> np.ndarray:
     )
     sector = np.floor((angle + np.pi) / (2.0 * np.pi) * SECTORS).astype(np.int64) % SECTORS
     nearest = np.full((n_rows, SECTORS), np.inf)
-    np.minimum.at(nearest, (np.repeat(np.arange(n_rows), offsets.shape[1]), sector.ravel()),
-                  distances[:, 1:].ravel())
+    np.minimum.at(
+        nearest,
+        (np.repeat(np.arange(n_rows), offsets.shape[1]), sector.ravel()),
+        distances[:, 1:].ravel(),
+    )
     nearest = np.minimum(nearest, distances[:, -1:])
     return np.sort(nearest, axis=1)[:, SECTORS_NEEDED - 1]
-

@@ -125,8 +125,8 @@ def read_points(path: str | os.PathLike) -> PointCloud:
     return PointCloud(points=points, source=os.fspath(path), **extras)
 
 
-def write_points(path: str | os.PathLike, points, *, normals=None) -> Path:
-    """Write points, and optionally normals, to ``.ply``, ``.xyz`` or ``.npy``.
+def write_points(path: str | os.PathLike, points, *, normals=None, viewpoints=None) -> Path:
+    """Write points, and optionally normals and viewpoints, to ``.ply``, ``.xyz`` or ``.npy``.
 
     Coordinates are stored in full float64 precision: PLY ``double`` properties, 17
     significant digits in XYZ text, or a float64 array.
@@ -137,6 +137,9 @@ def write_points(path: str | os.PathLike, points, *, normals=None) -> Path:
         Destination; its directory must exist. An existing file is replaced atomically.
     points : (N, 3) array_like of float
     normals : (N, 3) array_like of float, optional
+    viewpoints : (N, 3) array_like of float, optional
+        Sensor position of every point; ``.ply`` only, as ``vp_x, vp_y, vp_z`` (what
+        `read_points` reads back).
 
     Returns
     -------
@@ -146,9 +149,10 @@ def write_points(path: str | os.PathLike, points, *, normals=None) -> Path:
     Raises
     ------
     InputError
-        If the suffix is not writable, the directory is missing, `points` or `normals` are
-        not finite (N, 3) arrays of the same length, or the file cannot be written. The
-        message starts with `path`.
+        If the suffix is not writable, the directory is missing, `points`, `normals` or
+        `viewpoints` are not finite (N, 3) arrays of the same length, viewpoints are given
+        for a format other than ``.ply``, or the file cannot be written. The message starts
+        with `path`.
 
     See Also
     --------
@@ -161,8 +165,17 @@ def write_points(path: str | os.PathLike, points, *, normals=None) -> Path:
             normals = as_points(normals, "normals")
             if len(normals) != len(points):
                 raise InputError(f"{len(points)} points but {len(normals)} normals")
+        extra = {}
+        if viewpoints is not None:
+            if target.suffix.lower() != ".ply":
+                raise InputError(
+                    f"viewpoints can only be written to .ply; got {target.suffix.lower()!r}"
+                )
+            extra["viewpoints"] = as_points(viewpoints, "viewpoints")
+            if len(extra["viewpoints"]) != len(points):
+                raise InputError(f"{len(points)} points but {len(extra['viewpoints'])} viewpoints")
         with atomic_target(target) as temp:
-            writer(temp, points, normals)
+            writer(temp, points, normals, **extra)
     return target
 
 

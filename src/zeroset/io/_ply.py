@@ -72,8 +72,14 @@ def _columns(vertex: plyfile.PlyElement, group: tuple[str, str, str]) -> np.ndar
         raise InputError(f"'vertex' properties {', '.join(group)} are not numbers") from exc
 
 
-def write_points(path: Path, points: np.ndarray, normals: np.ndarray | None) -> None:
-    """Write points, and normals when given, as a binary PLY ``vertex`` element of doubles.
+def write_points(
+    path: Path,
+    points: np.ndarray,
+    normals: np.ndarray | None,
+    *,
+    viewpoints: np.ndarray | None = None,
+) -> None:
+    """Write points, normals and viewpoints when given, as a binary PLY ``vertex`` element.
 
     Parameters
     ----------
@@ -81,8 +87,10 @@ def write_points(path: Path, points: np.ndarray, normals: np.ndarray | None) -> 
         Destination, overwritten.
     points : (N, 3) float64
     normals : (N, 3) float64 or None
+    viewpoints : (N, 3) float64, optional
+        Sensor position of every point, written as ``double vp_x, vp_y, vp_z``.
     """
-    write_ply(path, points, normals=normals)
+    write_ply(path, points, normals=normals, viewpoints=viewpoints)
 
 
 def write_ply(
@@ -90,6 +98,7 @@ def write_ply(
     vertices: np.ndarray,
     *,
     normals: np.ndarray | None = None,
+    viewpoints: np.ndarray | None = None,
     faces: np.ndarray | None = None,
     binary: bool = True,
 ) -> None:
@@ -102,6 +111,8 @@ def write_ply(
     vertices : (N, 3) float64
     normals : (N, 3) float64, optional
         Written as ``double nx, ny, nz``.
+    viewpoints : (N, 3) float64, optional
+        Written as ``double vp_x, vp_y, vp_z``, the names `read_points` looks for first.
     faces : (F, 3) int64, optional
         Written as a ``face`` element with ``list uchar int vertex_indices``.
     binary : bool
@@ -112,8 +123,10 @@ def write_ply(
     InputError
         If a face index does not fit the PLY ``int`` type (2**31 vertices or more).
     """
-    columns = [*_XYZ, *(_NORMALS if normals is not None else ())]
-    table = vertices if normals is None else np.hstack([vertices, normals])
+    groups = [(_XYZ, vertices), (_NORMALS, normals), (_VIEWPOINTS[0], viewpoints)]
+    groups = [(names, values) for names, values in groups if values is not None]
+    columns = [name for names, _ in groups for name in names]
+    table = np.hstack([values for _, values in groups])
     vertex = np.zeros(len(table), dtype=[(name, "f8") for name in columns])
     for index, name in enumerate(columns):
         vertex[name] = table[:, index]
