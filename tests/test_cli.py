@@ -146,3 +146,18 @@ def test_demo_writes_its_folder(tmp_path, capsys):
     assert report["stats"]["boundary_loops"] == 2
     printed = capsys.readouterr().out
     assert "outliers dropped" in printed and "triangles" in printed and str(out) in printed
+
+
+@pytest.mark.parametrize(
+    "kind, extra",
+    [("tee", ["--points", "3000", "--noise", "0.002"]), ("pipe-scan", ["--rotation-step", "8"])],
+)
+def test_synth_writes_points_and_truth_that_reconstruct_reads(kind, extra, tmp_path):
+    out = tmp_path / f"{kind}.ply"
+    assert main(["synth", kind, "-o", str(out), "--quiet", *extra]) == 0
+    cloud = io.read_points(out)
+    truth = io.read_mesh(tmp_path / f"{kind}-truth.ply")
+    assert cloud.points.shape[0] > 1000 and truth.n_faces > 1000
+    assert (cloud.viewpoints is not None) == (kind == "pipe-scan")
+    expected_loops = {"tee": 3, "pipe-scan": 2}[kind]
+    assert len(topology.boundary_loops(truth.faces)) == expected_loops

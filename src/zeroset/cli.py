@@ -1,4 +1,4 @@
-"""Command line: ``zeroset reconstruct``, ``zeroset demo``."""
+"""Command line: ``zeroset reconstruct``, ``demo``, ``synth``, ``evaluate``."""
 
 from __future__ import annotations
 
@@ -72,7 +72,54 @@ def _parser() -> argparse.ArgumentParser:
     demo.add_argument("--points", type=int, default=DEMO_POINTS, help="number of points")
     demo.add_argument("--seed", type=int, default=0, help="seed of the simulated scan")
     demo.set_defaults(command="demo", run=_run_demo)
+
+    synth = commands.add_parser(
+        "synth",
+        parents=[common],
+        help="write a synthetic cloud and its true surface",
+        description="Write seeded synthetic points (PLY, with normals and, for scans, sensor "
+        "positions) and the true surface beside them as <stem>-truth.ply.",
+    )
+    synth.add_argument("kind", choices=sorted(SYNTH_KINDS), help="what to sample")
+    synth.add_argument("-o", "--output", type=Path, required=True, help="points file (.ply)")
+    synth.add_argument(
+        "--points",
+        type=int,
+        default=20_000,
+        help="number of points (surfaces; scans: see --rotation-step)",
+    )
+    synth.add_argument(
+        "--noise", type=float, default=0.0, help="Gaussian noise per axis in metres (surfaces)"
+    )
+    synth.add_argument(
+        "--noise-scale",
+        type=float,
+        default=1.0,
+        help="scale of the scanner's range noise model (pipe-scan)",
+    )
+    synth.add_argument(
+        "--rotation-step",
+        type=float,
+        default=1.0,
+        help="degrees between scan lines (pipe-scan); 1 gives ~184k points",
+    )
+    synth.add_argument("--radius", type=float, help="pipe or sphere radius in metres")
+    synth.add_argument("--outliers", type=float, default=0.0, help="share of uniform outliers")
+    synth.add_argument("--seed", type=int, default=0, help="seed")
+    synth.set_defaults(command="synth", run=_run_synth)
     return parser
+
+
+#: ``zeroset synth`` kinds: generator name in zeroset.synthetic, and whether it takes n.
+SYNTH_KINDS = {
+    "cylinder": "sample_cylinder",
+    "sphere": "sample_sphere",
+    "torus": "sample_torus",
+    "two-spheres": "two_spheres",
+    "elbow": "sample_elbow",
+    "tee": "sample_tee",
+    "pipe-scan": "scan_pipe",
+}
 
 
 def _add_config_options(parser: argparse.ArgumentParser) -> None:
@@ -187,6 +234,29 @@ def _run_demo(args: argparse.Namespace) -> int:
         )
         print(f"wrote       {args.out}/: pipe-points.ply, mesh.ply, preview.png, report.json")
     return code
+
+
+def _run_synth(args: argparse.Namespace) -> int:
+    from . import synthetic
+
+    generator = getattr(synthetic, SYNTH_KINDS[args.kind])
+    options = {"rng": args.seed, "outliers": args.outliers}
+    if args.radius is not None:
+        options["radius"] = args.radius
+    if args.kind == "pipe-scan":
+        options.update(rotation_step=args.rotation_step, noise_scale=args.noise_scale)
+        sample = generator(**options)
+    else:
+        if args.kind == "two-spheres":
+            options.pop("radius", None)
+        sample = generator(args.points, noise=args.noise, **options)
+    points_path, truth_path = synthetic.write_sample(sample, args.output)
+    if not args.quiet:
+        print(
+            f"wrote {sample.points.shape[0]:,} points to {points_path}"
+            + (f" and the true surface to {truth_path}" if truth_path else "")
+        )
+    return 0
 
 
 def _finish(result, args, *, source, mesh_path, report_path, preview_path) -> int:
