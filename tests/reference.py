@@ -28,3 +28,28 @@ def propagate_signs(order, predecessors, normals, root_sign):
         else:
             signs[v] = signs[p] * (1.0 if normals[p] @ normals[v] >= 0 else -1.0)
     return signs
+
+
+def closest_points_on_mesh(points, vertices, faces, degenerate):
+    """Closest point, face and distance by testing every face; flagged faces as three edges."""
+    from zeroset.evaluate import closest_points_on_triangles
+
+    n = points.shape[0]
+    best = np.full(n, np.inf)
+    closest, face = np.zeros((n, 3)), np.full(n, -1)
+    for f, (a, b, c) in enumerate(vertices[faces]):
+        if degenerate[f]:
+            feet = []
+            for u, v in ((a, b), (b, c), (c, a)):
+                length2 = (v - u) @ (v - u)
+                t = np.zeros(n) if length2 == 0 else np.clip((points - u) @ (v - u) / length2, 0, 1)
+                feet.append(u + t[:, None] * (v - u))
+            feet = np.stack(feet)
+            foot = feet[np.argmin(np.linalg.norm(feet - points, axis=2), axis=0), np.arange(n)]
+        else:
+            corners = (np.broadcast_to(corner, points.shape) for corner in (a, b, c))
+            foot = closest_points_on_triangles(points, *corners)
+        distance = np.linalg.norm(points - foot, axis=1)
+        better = distance < best
+        best[better], closest[better], face[better] = distance[better], foot[better], f
+    return closest, face, best

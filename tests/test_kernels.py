@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from tests import reference
+from zeroset._kernels import evaluate as evaluate_kernels
 from zeroset._kernels import normals as normals_kernels
 from zeroset._kernels import orientation as orientation_kernels
 from zeroset.neighbours import knn
@@ -32,9 +33,28 @@ def _tree_inputs(rng):
     return order.astype(np.int64), predecessors.astype(np.int64), normals, root_sign
 
 
+def _triangle_soup_inputs(rng):
+    # Separate triangles of sizes from 1e-3 to 3, so no two are equally close to a point;
+    # the last one repeats a vertex and is flagged degenerate.
+    n = 150
+    centres = rng.uniform(-2, 2, size=(n, 1, 3))
+    sizes = 10.0 ** rng.uniform(-3, 0.5, size=(n, 1, 1))
+    corners = centres + sizes * rng.normal(size=(n, 3, 3))
+    corners[-1, 2] = corners[-1, 0]
+    degenerate = np.zeros(n, dtype=bool)
+    degenerate[-1] = True
+    points = rng.uniform(-3, 3, size=(300, 3))
+    return points, corners.reshape(-1, 3), np.arange(3 * n).reshape(n, 3), degenerate
+
+
 COMPARISONS = [
     (normals_kernels.centroid_covariance, reference.centroid_covariance, _neighbourhood_inputs),
     (orientation_kernels.propagate_signs, reference.propagate_signs, _tree_inputs),
+    (
+        evaluate_kernels.closest_points_on_mesh,
+        reference.closest_points_on_mesh,
+        _triangle_soup_inputs,
+    ),
 ]
 
 

@@ -1,0 +1,272 @@
+"""Closest points on a triangle mesh through a bounding-volume hierarchy (exact).
+
+The hierarchy is a complete binary tree stored without pointers: node ``n`` has children
+``2n`` and ``2n + 1`` (root 1) and the ``L`` leaves are nodes ``L .. 2L - 1``. It is built
+top-down: each node splits its triangles at the median of their box centres along the
+widest axis, so every leaf holds at most ``LEAF_SIZE`` triangles, stored contiguously.
+Each query descends nearer child first and skips every box no nearer than the best
+triangle so far. Box distances are lower bounds, so the answer is the exact minimum over
+all triangles (Ericson 2005, §6.3 and §6.4), up to rounding.
+"""
+
+import numpy as np
+
+from ._jit import jit, jit_parallel, prange
+
+LEAF_SIZE = 4
+_MORTON_BITS = 21
+
+
+@jit
+def _closest_point_on_segment(px, py, pz, t, i, j):
+    # Projection of p onto the line through corners i and j of row t, clamped to the segment.
+    ax, ay, az = t[3 * i], t[3 * i + 1], t[3 * i + 2]
+    ux, uy, uz = t[3 * j] - ax, t[3 * j + 1] - ay, t[3 * j + 2] - az
+    length2 = ux * ux + uy * uy + uz * uz
+    s = 0.0
+    if length2 > 0.0:
+        s = min(max(((px - ax) * ux + (py - ay) * uy + (pz - az) * uz) / length2, 0.0), 1.0)
+    qx, qy, qz = ax + s * ux, ay + s * uy, az + s * uz
+    return qx, qy, qz, (px - qx) ** 2 + (py - qy) ** 2 + (pz - qz) ** 2
+
+
+@jit
+def _closest_point_on_triangle(px, py, pz, t, degenerate):
+    # Row t = corners a, b, c, then the dual vectors e_b = (ac x n) / |n|^2 and
+    # e_c = (n x ab) / |n|^2 with n = ab x ac: the barycentric coordinates of the projection
+    # of p onto the plane are w_b = e_b . (p - a), w_c = e_c . (p - a) (Ericson 2005, §3.4).
+    # Inside the triangle the projection is the closest point; outside, the closest point
+    # lies on an edge opposite a negative coordinate. A degenerate triangle is its edges.
+    qx, qy, qz, best = px, py, pz, np.inf
+    check_a = check_b = check_c = True
+    if not degenerate:
+        apx, apy, apz = px - t[0], py - t[1], pz - t[2]
+        wb = t[9] * apx + t[10] * apy + t[11] * apz
+        wc = t[12] * apx + t[13] * apy + t[14] * apz
+        wa = 1.0 - wb - wc
+        if wa >= 0.0 and wb >= 0.0 and wc >= 0.0:
+            qx = t[0] + wb * (t[3] - t[0]) + wc * (t[6] - t[0])
+            qy = t[1] + wb * (t[4] - t[1]) + wc * (t[7] - t[1])
+            qz = t[2] + wb * (t[5] - t[2]) + wc * (t[8] - t[2])
+            return qx, qy, qz, (px - qx) ** 2 + (py - qy) ** 2 + (pz - qz) ** 2
+        check_a, check_b, check_c = wa < 0.0, wb < 0.0, wc < 0.0
+    for corner, i, j in ((check_a, 1, 2), (check_b, 2, 0), (check_c, 0, 1)):
+        if corner:
+            x, y, z, d2 = _closest_point_on_segment(px, py, pz, t, i, j)
+            if d2 < best:
+                qx, qy, qz, best = x, y, z, d2
+    return qx, qy, qz, best
+
+
+@jit
+def _box_distance2(px, py, pz, boxes, node):
+    # Squared distance from p to box (lo, hi) = boxes[node]; inf for an empty node.
+    dx = max(boxes[node, 0] - px, 0.0, px - boxes[node, 3])
+    dy = max(boxes[node, 1] - py, 0.0, py - boxes[node, 4])
+    dz = max(boxes[node, 2] - pz, 0.0, pz - boxes[node, 5])
+    return dx * dx + dy * dy + dz * dz
+
+
+@jit
+def _centre_distance2(px, py, pz, boxes, node):
+    # Squared distance from p to the centre of the box of `node`: breaks ties between
+    # children whose boxes both contain p.
+    dx = 0.5 * (boxes[node, 0] + boxes[node, 3]) - px
+    dy = 0.5 * (boxes[node, 1] + boxes[node, 4]) - py
+    dz = 0.5 * (boxes[node, 2] + boxes[node, 5]) - pz
+    return dx * dx + dy * dy + dz * dz
+
+
+@jit
+def _select(keys, items, lo, hi, k):
+    # Hoare's FIND (quickselect): reorder keys[lo:hi] and items[lo:hi] alike so that
+    # keys[k] is in its sorted place, no larger key before it and no smaller one after.
+    while hi - lo > 1:
+        a, b, c = keys[lo], keys[(lo + hi) // 2], keys[hi - 1]
+        pivot = max(min(a, b), min(max(a, b), c))  # median of three
+        i, j = lo, hi - 1
+        while i <= j:
+            while keys[i] < pivot:
+                i += 1
+            while keys[j] > pivot:
+                j -= 1
+            if i <= j:
+                keys[i], keys[j] = keys[j], keys[i]
+                items[i], items[j] = items[j], items[i]
+                i += 1
+                j -= 1
+        if k <= j:
+            hi = j + 1
+        elif k >= i:
+            lo = i
+        else:
+            return
+
+
+@jit
+def _median_split(centres, order, start, count):
+    # Top-down build: node n holds order[start[n] : start[n] + count[n]]; its first
+    # ceil(count / 2) triangles by the centre coordinate along the widest axis go left.
+    keys = np.zeros(centres.shape[0])
+    n_leaves = start.shape[0] // 2
+    count[1] = centres.shape[0]
+    for node in range(1, n_leaves):
+        s, c = start[node], count[node]
+        half = (c + 1) // 2
+        if c > 1:
+            lo = np.full(3, np.inf)
+            hi = np.full(3, -np.inf)
+            for j in range(s, s + c):
+                for axis in range(3):
+                    lo[axis] = min(lo[axis], centres[order[j], axis])
+                    hi[axis] = max(hi[axis], centres[order[j], axis])
+            axis = np.argmax(hi - lo)
+            for j in range(s, s + c):
+                keys[j] = centres[order[j], axis]
+            _select(keys, order, s, s + c, s + half)
+        start[2 * node], count[2 * node] = s, half
+        start[2 * node + 1], count[2 * node + 1] = s + half, c - half
+
+
+@jit_parallel
+def _closest_point_rows(
+    points, triangles, degenerate, boxes, leaf_start, leaf_count, closest, slot, distance
+):
+    # For each point, the minimum over triangles T of |p - q(p, T)|, found by branch and
+    # bound over the boxes: a subtree is skipped when its box is no nearer than the best
+    # triangle so far. `triangles` (S, 15) are in leaf order (corners, then the two dual
+    # vectors); `slot` gets the row. Rows flagged `degenerate` (S,) count as their edges.
+    n_leaves = leaf_start.shape[0]
+    for i in prange(points.shape[0]):
+        px, py, pz = points[i, 0], points[i, 1], points[i, 2]
+        best, best_slot = np.inf, -1
+        bx, by, bz = px, py, pz
+        stack = np.zeros(128, dtype=np.int64)  # depth <= log2(n_leaves) + 1 < 64
+        stack_distance = np.zeros(128)
+        stack[0] = 1
+        top = 1
+        while top > 0:
+            top -= 1
+            node = stack[top]
+            if stack_distance[top] >= best:
+                continue
+            if node >= n_leaves:
+                first = leaf_start[node - n_leaves]
+                for s in range(first, first + leaf_count[node - n_leaves]):
+                    qx, qy, qz, d2 = _closest_point_on_triangle(
+                        px, py, pz, triangles[s], degenerate[s]
+                    )
+                    if d2 < best:
+                        best, best_slot = d2, s
+                        bx, by, bz = qx, qy, qz
+                continue
+            near, far = 2 * node, 2 * node + 1
+            d_near = _box_distance2(px, py, pz, boxes, near)
+            d_far = _box_distance2(px, py, pz, boxes, far)
+            if d_far < d_near or (
+                d_far == d_near
+                and _centre_distance2(px, py, pz, boxes, far)
+                < _centre_distance2(px, py, pz, boxes, near)
+            ):
+                near, far, d_near, d_far = far, near, d_far, d_near
+            if d_far < best:
+                stack[top], stack_distance[top] = far, d_far
+                top += 1
+            if d_near < best:
+                stack[top], stack_distance[top] = near, d_near
+                top += 1
+        closest[i, 0], closest[i, 1], closest[i, 2] = bx, by, bz
+        slot[i] = best_slot
+        distance[i] = np.sqrt(best)
+
+
+def morton_order(points, lo, hi):
+    """Return the permutation (N,) int64 that sorts (N, 3) `points` along a Z-order curve."""
+    scale = (2**_MORTON_BITS - 1) / np.maximum(hi - lo, 1e-300)
+    cells = np.clip((points - lo) * scale, 0, 2**_MORTON_BITS - 1).astype(np.uint64)
+    code = np.zeros(points.shape[0], dtype=np.uint64)
+    for axis in range(3):
+        x = cells[:, axis]
+        # Spread the 21 bits of x to every third bit.
+        for shift, mask in (
+            (32, 0x1F00000000FFFF),
+            (16, 0x1F0000FF0000FF),
+            (8, 0x100F00F00F00F00F),
+            (4, 0x10C30C30C30C30C3),
+            (2, 0x1249249249249249),
+        ):
+            x = (x | (x << np.uint64(shift))) & np.uint64(mask)
+        code |= x << np.uint64(axis)
+    return np.argsort(code, kind="stable").astype(np.int64)
+
+
+def build_hierarchy(vertices, faces, degenerate):
+    """Return the hierarchy over (F, 3) `faces`: triangles in leaf order and node boxes.
+
+    Returns ``triangles`` (F, 15) float64 (corners a, b, c and the dual vectors e_b, e_c
+    of each, zero for faces flagged in `degenerate`), ``order`` (F,) int64
+    (the face of each row), ``boxes`` (2L, 6) float64 (lo, hi per node; inverted for an
+    empty node, so no query enters it), and ``leaf_start``, ``leaf_count`` (L,) int64.
+    """
+    corners = vertices[faces]
+    tri_lo, tri_hi = corners.min(axis=1), corners.max(axis=1)
+    n_faces = faces.shape[0]
+    n_leaves = 1 << max(int(-(-n_faces // LEAF_SIZE) - 1).bit_length(), 0)
+    order = np.arange(n_faces, dtype=np.int64)
+    start = np.zeros(2 * n_leaves, dtype=np.int64)
+    count = np.zeros(2 * n_leaves, dtype=np.int64)
+    _median_split(0.5 * (tri_lo + tri_hi), order, start, count)
+    leaf_start, leaf_count = start[n_leaves:].copy(), count[n_leaves:].copy()
+    boxes = np.concatenate(
+        [np.full((2 * n_leaves, 3), np.inf), np.full((2 * n_leaves, 3), -np.inf)], axis=1
+    )
+    used = leaf_count > 0
+    boxes[n_leaves:][used, :3] = np.minimum.reduceat(tri_lo[order], leaf_start[used], axis=0)
+    boxes[n_leaves:][used, 3:] = np.maximum.reduceat(tri_hi[order], leaf_start[used], axis=0)
+    width = n_leaves // 2
+    while width >= 1:
+        nodes = np.arange(width, 2 * width)
+        boxes[nodes, :3] = np.minimum(boxes[2 * nodes, :3], boxes[2 * nodes + 1, :3])
+        boxes[nodes, 3:] = np.maximum(boxes[2 * nodes, 3:], boxes[2 * nodes + 1, 3:])
+        width //= 2
+    corners = corners[order]
+    ab, ac = corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]
+    normal = np.cross(ab, ac)
+    length2 = np.einsum("ij,ij->i", normal, normal)
+    scale = np.divide(1.0, length2, out=np.zeros_like(length2), where=~degenerate[order])
+    duals = np.cross(ac, normal) * scale[:, None], np.cross(normal, ab) * scale[:, None]
+    triangles = np.ascontiguousarray(np.concatenate([corners.reshape(-1, 9), *duals], axis=1))
+    return triangles, order, boxes, leaf_start, leaf_count
+
+
+def closest_points_on_mesh(points, vertices, faces, degenerate):
+    """Return the closest point (N, 3), its face (N,) int64 and the distance (N,) per point.
+
+    `points` (N, 3) and `vertices` (M, 3) are float64, `faces` (F, 3) int64 with F >= 1;
+    faces flagged in `degenerate` (F,) bool count as their three edges. Queries run in
+    Morton order, so neighbouring iterations walk the same part of the tree.
+    """
+    triangles, face_of_slot, boxes, leaf_start, leaf_count = build_hierarchy(
+        vertices, faces, degenerate
+    )
+    query = morton_order(points, points.min(axis=0), points.max(axis=0))
+    n = points.shape[0]
+    closest = np.zeros((n, 3))
+    slot = np.zeros(n, dtype=np.int64)
+    distance = np.zeros(n)
+    _closest_point_rows(
+        np.ascontiguousarray(points[query]),
+        triangles,
+        np.ascontiguousarray(degenerate[face_of_slot]),
+        boxes,
+        leaf_start,
+        leaf_count,
+        closest,
+        slot,
+        distance,
+    )
+    out_closest, out_face, out_distance = np.zeros((n, 3)), np.zeros(n, np.int64), np.zeros(n)
+    out_closest[query] = closest
+    out_face[query] = face_of_slot[slot]
+    out_distance[query] = distance
+    return out_closest, out_face, out_distance
