@@ -15,7 +15,7 @@ from scipy.sparse.csgraph import connected_components
 from ._kernels import evaluate as _kernels
 from ._validate import as_faces, as_points, positive, require_rng
 from .errors import InputError
-from .topology import face_components, half_edges
+from .topology import corner_fans, edge_ids, face_components
 from .types import Mesh
 
 __all__ = [
@@ -690,8 +690,8 @@ def _compare_to_points(vertices, faces, points, tau):
 
 def _mesh_quality(vertices, faces):
     """mesh_quality on validated arrays."""
-    edge_of_half, counts = _edge_ids(faces, vertices.shape[0])
-    fan, n_fans = _corner_fans(faces, edge_of_half)
+    edge_of_half, counts = edge_ids(faces, vertices.shape[0])
+    fan, n_fans = corner_fans(faces, edge_of_half)
     corner_vertex = faces.reshape(-1)
     fan_vertex = np.zeros(n_fans, dtype=np.int64)
     fan_vertex[fan] = corner_vertex
@@ -784,42 +784,6 @@ def _smallest_angle_degrees(a, b, c) -> np.ndarray:
         for o, u, v in ((a, b, c), (b, c, a), (c, a, b))
     ]
     return np.degrees(np.min(angles, axis=0))
-
-
-def _edge_ids(faces: np.ndarray, n_vertices: int) -> tuple[np.ndarray, np.ndarray]:
-    """Undirected edge id of every half-edge (3F,) and the face count of every edge (E,)."""
-    half = np.sort(half_edges(faces), axis=1)
-    # One integer key per edge: a 1-D unique is many times faster than unique(axis=0).
-    key = half[:, 0] * np.int64(n_vertices) + half[:, 1]
-    _, edge_of_half, counts = np.unique(key, return_inverse=True, return_counts=True)
-    return edge_of_half.reshape(-1), counts
-
-
-def _corner_fans(faces: np.ndarray, edge_of_half: np.ndarray) -> tuple[np.ndarray, int]:
-    """Fan label (3F,) of every face corner, and the number of fans.
-
-    Corner ``3f + i`` is vertex ``faces[f, i]`` in face f. Two corners of one vertex are in
-    one fan when their faces share an edge at that vertex, whatever the orientation and
-    however many faces hold the edge. The same corner graph as
-    ``repair.split_nonmanifold_vertices``, which joins corners through oriented twins only.
-    """
-    n_corners = faces.size
-    half = half_edges(faces)
-    tail = np.arange(n_corners)
-    head = 3 * (tail // 3) + (tail % 3 + 1) % 3
-    # Corner of the lower and of the higher vertex id of each half-edge's edge.
-    forward = half[:, 0] < half[:, 1]
-    low, high = np.where(forward, tail, head), np.where(forward, head, tail)
-    # Chain the half-edges of each edge: consecutive ones in edge order share it.
-    order = np.argsort(edge_of_half, kind="stable")
-    same = edge_of_half[order[1:]] == edge_of_half[order[:-1]]
-    first, second = order[:-1][same], order[1:][same]
-    loops = half[:, 0] == half[:, 1]  # a repeated vertex: its two corners are one fan
-    rows = np.concatenate([low[first], high[first], tail[loops]])
-    cols = np.concatenate([low[second], high[second], head[loops]])
-    graph = sparse.coo_matrix((np.ones(rows.size), (rows, cols)), shape=(n_corners, n_corners))
-    n_fans, fan = connected_components(graph, directed=False)
-    return fan.astype(np.int64), int(n_fans)
 
 
 def _count_boundary_loops(fan: np.ndarray, n_fans: int, border: np.ndarray) -> int:

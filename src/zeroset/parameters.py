@@ -189,7 +189,7 @@ def _plane_residual(points, indices, distances, radius) -> float:
 
 
 def _sector_radius(points, indices, distances) -> np.ndarray:
-    """Radius (R,) at which each row's point has a neighbour in SECTORS_NEEDED of SECTORS directions.
+    """Radius (R,) reaching neighbours in SECTORS_NEEDED of SECTORS directions around each row.
 
     Directions are angular sectors in the plane of the neighbourhood's two largest principal
     axes. A sector with no neighbour among the row's columns counts as the farthest one.

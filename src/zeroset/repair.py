@@ -3,10 +3,8 @@
 from __future__ import annotations
 
 import numpy as np
-from scipy import sparse
-from scipy.sparse.csgraph import connected_components
 
-from .topology import boundary_loops, edge_face_counts, face_components, half_edges
+from .topology import boundary_loops, corner_fans, edge_face_counts, edge_ids, face_components
 from .types import Mesh
 
 __all__ = [
@@ -40,7 +38,7 @@ def split_nonmanifold_vertices(mesh: Mesh) -> tuple[Mesh, int]:
 
     Where two face fans touch at a single vertex (a bow-tie, as marching cubes leaves on
     an open boundary), the vertex is duplicated, so that the mesh becomes vertex-manifold
-    and each boundary is a simple loop. Requires an edge-manifold, consistently oriented mesh.
+    and each boundary is a simple loop.
 
     Returns
     -------
@@ -49,29 +47,16 @@ def split_nonmanifold_vertices(mesh: Mesh) -> tuple[Mesh, int]:
         Vertices added.
     """
     faces = mesh.faces
-    n_corners = faces.size
-    half = half_edges(faces)
-    tail_corner = np.arange(n_corners)
-    head_corner = 3 * (tail_corner // 3) + (tail_corner % 3 + 1) % 3
-    key = half[:, 0] * np.int64(mesh.n_vertices) + half[:, 1]
-    twin_key = half[:, 1] * np.int64(mesh.n_vertices) + half[:, 0]
-    order = np.argsort(key)
-    slot = np.minimum(np.searchsorted(key[order], twin_key), n_corners - 1)
-    has_twin = key[order][slot] == twin_key
-    h1 = tail_corner[has_twin]
-    h2 = order[slot[has_twin]]
-    # Half-edge h1 = (a, b) and its twin h2 = (b, a) join the corners of a, and of b.
-    rows = np.concatenate([tail_corner[h1], head_corner[h1]])
-    cols = np.concatenate([head_corner[h2], tail_corner[h2]])
-    graph = sparse.coo_matrix((np.ones(rows.size), (rows, cols)), shape=(n_corners, n_corners))
-    _, fan = connected_components(graph, directed=False)
-    fans, first = np.unique(fan, return_index=True)
+    fan, n_fans = corner_fans(faces, edge_ids(faces, mesh.n_vertices)[0])
+    # Number the fans in order of first corner, so unaffected vertices keep their order.
+    _, first = np.unique(fan, return_index=True)
+    order = np.argsort(first)
+    remap = np.empty(n_fans, dtype=np.int64)
+    remap[order] = np.arange(n_fans)
     corner_vertex = faces.reshape(-1)
-    remap = np.empty(fans.size, dtype=np.int64)
-    remap[np.searchsorted(fans, fan[first])] = np.arange(fans.size)
-    new_faces = remap[np.searchsorted(fans, fan)].reshape(-1, 3)
-    vertices = mesh.vertices[corner_vertex[first]]
-    added = fans.size - np.unique(corner_vertex).size
+    vertices = mesh.vertices[corner_vertex[first[order]]]
+    new_faces = remap[fan].reshape(-1, 3)
+    added = n_fans - np.unique(corner_vertex).size
     return Mesh(vertices=vertices, faces=new_faces), int(added)
 
 
