@@ -161,3 +161,42 @@ def test_synth_writes_points_and_truth_that_reconstruct_reads(kind, extra, tmp_p
     assert (cloud.viewpoints is not None) == (kind == "pipe-scan")
     expected_loops = {"tee": 3, "pipe-scan": 2}[kind]
     assert len(topology.boundary_loops(truth.faces)) == expected_loops
+
+
+def test_evaluate_reports_reference_points_and_quality(tmp_path, capsys):
+    points = tmp_path / "tee.ply"
+    assert (
+        main(["synth", "tee", "-o", str(points), "--points", "6000", "--noise", "0.002", "--quiet"])
+        == 0
+    )
+    mesh = tmp_path / "mesh.ply"
+    assert main(["reconstruct", str(points), "-o", str(mesh), "--quiet"]) == 0
+    out = tmp_path / "eval.json"
+    code = main(
+        [
+            "evaluate",
+            str(mesh),
+            "--reference",
+            str(tmp_path / "tee-truth.ply"),
+            "--points",
+            str(points),
+            "--samples",
+            "20000",
+            "--json",
+            str(out),
+        ]
+    )
+    assert code == 0
+    report = json.loads(out.read_text())
+    assert report["quality"]["boundary_loops"] == 3
+    assert report["quality"]["non_manifold_edges"] == 0
+    assert report["reference"]["chamfer_l1"] < 0.01
+    assert all(t["f_score"] > 0.9 for t in report["reference"]["thresholds"])
+    assert report["points"]["coverage"] > 0.95
+    printed = capsys.readouterr().out
+    assert "F-score" in printed and "coverage" in printed and "boundary loops" in printed
+
+
+def test_evaluate_missing_mesh_exits_2(tmp_path, capsys):
+    assert main(["evaluate", str(tmp_path / "nothing.ply")]) == 2
+    assert "no such file" in capsys.readouterr().err
