@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -40,7 +41,10 @@ def read_points(path: Path) -> dict[str, np.ndarray | None]:
         properties of a group (``nx`` without ``nz``, say). Messages carry no path prefix.
     """
     try:
-        data = plyfile.PlyData.read(os.fspath(path), mmap=False)
+        with warnings.catch_warnings():
+            # plyfile warns on empty list rows of elements we do not use (range grids).
+            warnings.simplefilter("ignore", UserWarning)
+            data = plyfile.PlyData.read(os.fspath(path), mmap=False)
     except (plyfile.PlyParseError, ValueError) as exc:
         raise InputError(f"not a valid PLY file ({exc})") from exc
     names = [element.name for element in data.elements]
