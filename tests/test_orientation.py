@@ -52,7 +52,7 @@ def test_viewpoint_orientation_faces_the_sensor(per_point, rng):
     result = orient_normals(
         planes.centroids, _random_signs(planes.normals, rng), viewpoints=viewpoints
     )
-    assert result.method == "viewpoint"
+    assert result.method == "mst+viewpoints"
     assert np.all(np.einsum("ij,ij->i", result.normals, sensor - planes.centroids) >= 0)
 
 

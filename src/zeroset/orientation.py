@@ -9,10 +9,14 @@ from scipy.sparse.csgraph import breadth_first_order, connected_components, mini
 from ._kernels.orientation import component_extremes, propagate_signs
 from ._validate import as_points, positive
 from .errors import InputError
-from .neighbours import knn
+from .neighbours import build_tree, knn
 from .types import Neighbourhoods, Orientation
 
 __all__ = ["orient_normals"]
+
+#: Mean |cosine| between normals and sensor directions above which a component's own
+#: viewpoint vote decides its orientation.
+DECISIVE = 0.3
 
 _DIRECTIONS = np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], float)
 
@@ -35,7 +39,10 @@ def orient_normals(
     one of the six axis directions (the one whose normal is most parallel to it), oriented
     along that direction: at an extreme point of a closed surface that is outward.
 
-    With viewpoints (sensor positions), every normal is flipped to face its sensor.
+    With viewpoints (sensor positions), each component is then turned to face its sensors:
+    its normals vote with the cosine to their sensor's direction. Flipping each normal to its
+    own sensor instead fails on scans where beams graze the surface (far down a pipe): there
+    the sign of n . (v - c) is decided by noise.
 
     Parameters
     ----------
@@ -45,7 +52,9 @@ def orient_normals(
     k : int
         Graph neighbours per centroid, itself included.
     max_edge : float, optional
-        Longest graph edge; farther centroids are in different components.
+        Longest graph edge. A component left apart is joined to the largest one by its
+        closest pair of points if they lie within twice this distance; farther ones stay
+        separate components.
     neighbours : Neighbourhoods, optional
         Precomputed neighbours to use for the graph (those of the data points serve as
         well as the centroids', thesis §3.2.8).
@@ -69,7 +78,12 @@ def orient_normals(
         raise InputError(f"normals must match centroids {centroids.shape}; got {normals.shape}")
     n = centroids.shape[0]
     if viewpoints is not None:
-        return _towards_viewpoints(centroids, normals, viewpoints)
+        viewpoints = np.asarray(viewpoints, dtype=np.float64)
+        if viewpoints.shape not in ((3,), centroids.shape) or not np.isfinite(viewpoints).all():
+            raise InputError(
+                f"viewpoints must be three finite numbers or one row per point "
+                f"{centroids.shape}; got shape {viewpoints.shape}"
+            )
 
     k = positive(k, "k", integer=True)
     if neighbours is None:
@@ -84,6 +98,9 @@ def orient_normals(
     cost = 1.0 - np.abs(np.einsum("ij,ij->i", normals[rows], normals[cols])) + 1e-9
     graph = sparse.coo_matrix((cost, (rows, cols)), shape=(n, n)).tocsr()
     n_components, component = connected_components(graph, directed=False)
+    if n_components > 1 and max_edge is not None:
+        graph = graph + _bridges(centroids, normals, component, 2.0 * max_edge)
+        n_components, component = connected_components(graph, directed=False)
     component = component.astype(np.int64)
 
     extremes = component_extremes(centroids, component, n_components)
@@ -102,29 +119,59 @@ def orient_normals(
     signs = propagate_signs(
         order.astype(np.int64), predecessors.astype(np.int64), normals, root_sign
     )
+    if viewpoints is not None:
+        signs *= _viewpoint_vote(centroids, normals * signs[:, None], viewpoints, component)
     return Orientation(
         normals=normals * signs[:, None],
         flipped=signs < 0,
         component=component,
         roots=roots.astype(np.int64),
-        method="mst",
+        method="mst" if viewpoints is None else "mst+viewpoints",
     )
 
 
-def _towards_viewpoints(centroids: np.ndarray, normals: np.ndarray, viewpoints) -> Orientation:
-    """Flip each normal to face its viewpoint."""
-    viewpoints = np.asarray(viewpoints, dtype=np.float64)
-    if viewpoints.shape not in ((3,), centroids.shape) or not np.isfinite(viewpoints).all():
-        raise InputError(
-            f"viewpoints must be three finite numbers or one row per point {centroids.shape}; "
-            f"got shape {viewpoints.shape}"
-        )
-    flipped = np.einsum("ij,ij->i", normals, viewpoints - centroids) < 0.0
+def _bridges(centroids, normals, component, reach) -> sparse.csr_matrix:
+    """Edges (N, N) joining each smaller component to the largest, where within `reach`.
+
+    Sparse parts of a scan (far down a pipe) fall apart into small components that belong
+    to the surface next to them; each is joined by its closest pair of points, as Hoppe's
+    Euclidean minimum spanning tree would join it. Separate objects stay apart.
+    """
     n = centroids.shape[0]
-    return Orientation(
-        normals=np.where(flipped[:, None], -normals, normals),
-        flipped=flipped,
-        component=np.zeros(n, dtype=np.int64),
-        roots=np.zeros(0, dtype=np.int64),
-        method="viewpoint",
+    largest = np.argmax(np.bincount(component))
+    main = np.flatnonzero(component == largest)
+    others = np.flatnonzero(component != largest)
+    distance, nearest = build_tree(centroids[main]).query(
+        centroids[others], distance_upper_bound=reach, workers=-1
     )
+    found = np.isfinite(distance)
+    # The closest pair of each component.
+    order = np.lexsort((distance[found], component[others[found]]))
+    first = np.ones(order.size, dtype=bool)
+    first[1:] = component[others[found]][order][1:] != component[others[found]][order][:-1]
+    rows = others[found][order][first]
+    cols = main[nearest[found][order][first]]
+    cost = 1.0 - np.abs(np.einsum("ij,ij->i", normals[rows], normals[cols])) + 1e-9
+    return sparse.coo_matrix((cost, (rows, cols)), shape=(n, n)).tocsr()
+
+
+def _viewpoint_vote(centroids, normals, viewpoints, component) -> np.ndarray:
+    """Sign (N,) per point: -1 in components whose normals face away from their sensors.
+
+    Each normal votes with the cosine between it and the direction to its sensor, so points
+    seen head-on count fully and grazing ones, whose sign noise decides, hardly. A component
+    seen only at grazing angles (mean |cosine| below ``DECISIVE``, such as a sparse ring far
+    down a pipe) follows the vote of the whole cloud, whose components all share the
+    outward convention of the extreme-point roots.
+    """
+    towards = viewpoints - centroids
+    cosine = np.einsum("ij,ij->i", normals, towards) / np.maximum(
+        np.linalg.norm(towards, axis=1), 1e-300
+    )
+    size = int(component.max()) + 1
+    votes = np.bincount(component, weights=cosine, minlength=size)
+    strength = np.bincount(component, weights=np.abs(cosine), minlength=size) / np.maximum(
+        np.bincount(component, minlength=size), 1
+    )
+    flip = np.where(strength >= DECISIVE, votes < 0.0, votes.sum() < 0.0)
+    return np.where(flip[component], -1.0, 1.0)
