@@ -230,6 +230,7 @@ def _run_reconstruct(args: argparse.Namespace) -> int:
     return _finish(
         result,
         args,
+        points=cloud.points,
         source=str(args.input),
         mesh_path=args.output,
         report_path=args.report,
@@ -250,6 +251,7 @@ def _run_demo(args: argparse.Namespace) -> int:
     code = _finish(
         result,
         args,
+        points=sample.points,
         source=str(points_path),
         mesh_path=args.out / "mesh.ply",
         report_path=args.out / "report.json",
@@ -310,13 +312,13 @@ def _run_evaluate(args: argparse.Namespace) -> int:
     return 0
 
 
-def _finish(result, args, *, source, mesh_path, report_path, preview_path) -> int:
+def _finish(result, args, *, points, source, mesh_path, report_path, preview_path) -> int:
     """Write the mesh, report and preview that were asked for; print the summary."""
     from . import io
     from .report import format_report, reconstruction_report
 
     io.write_mesh(mesh_path, result.mesh, binary=not getattr(args, "ascii", False))
-    report = reconstruction_report(result, source=source)
+    report = reconstruction_report(result, source=source, points=points)
     if report_path is not None:
         io.write_json(report_path, report)
     if preview_path is not None:

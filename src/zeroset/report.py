@@ -4,28 +4,44 @@ from __future__ import annotations
 
 from dataclasses import asdict
 
+import numpy as np
+
+from ._validate import as_points, require_rng
+from .evaluate import compare_to_points
 from .pipeline import Reconstruction
 
 __all__ = ["format_report", "reconstruction_report"]
 
 
-def reconstruction_report(result: Reconstruction, *, source: str | None = None) -> dict:
-    """Return a JSON-ready summary of `result`: parameters and why, counts, timings.
+#: Points used to measure the fit of the mesh to the data in a report.
+FIT_SAMPLES = 200_000
+
+
+def reconstruction_report(
+    result: Reconstruction, *, source: str | None = None, points=None, rng=0
+) -> dict:
+    """Return a JSON-ready summary of `result`: parameters and why, counts, timings, fit.
 
     Parameters
     ----------
     result : Reconstruction
     source : str, optional
         Where the points came from, for the record.
+    points : (N, 3) array_like of float, optional
+        The input points; when given, the report measures their distance to the mesh (on a
+        seeded sample of at most ``FIT_SAMPLES``).
+    rng : numpy.random.Generator or int or None
+        Chooses that sample.
 
     Returns
     -------
     dict
         Keys ``source``, ``parameters`` (values and ``notes``), ``config``, ``stats``,
-        ``timings`` (seconds per stage) and ``total_seconds``.
+        ``timings`` (seconds per stage), ``total_seconds`` and, with `points`, ``fit``
+        (see :func:`zeroset.evaluate.compare_to_points`).
     """
     params = result.parameters
-    return {
+    report = {
         "source": source,
         "parameters": {
             "rho_delta": params.rho_delta,
@@ -41,24 +57,33 @@ def reconstruction_report(result: Reconstruction, *, source: str | None = None) 
         "timings": {name: round(seconds, 4) for name, seconds in result.timings.items()},
         "total_seconds": round(sum(result.timings.values()), 4),
     }
+    if points is not None:
+        points = as_points(points)
+        if points.shape[0] > FIT_SAMPLES:
+            rows = require_rng(rng).choice(points.shape[0], FIT_SAMPLES, replace=False)
+            points = points[np.sort(rows)]
+        report["fit"] = compare_to_points(result.mesh, points)
+    return report
 
 
 def format_report(report: dict) -> str:
     """Render a report from :func:`reconstruction_report` as a few aligned lines of text."""
     stats = report["stats"]
     removed = [
-        f"{stats[key]} {label}"
+        f"{stats[key]:,} {label}"
         for key, label in (
             ("cropped", "cropped"),
             ("sampled_out", "sampled out"),
             ("voxel_merged", "merged by voxels"),
-            ("outliers", "outliers dropped"),
         )
         if key in stats
     ]
+    cells = stats["phase1_points"] + stats["outliers"]
     lines = [
-        f"points      {stats['input_points']:,} in; {', '.join(removed)}; "
-        f"{stats['phase1_points']:,} used for tangent planes",
+        f"points      {stats['input_points']:,} in"
+        + "".join(f"; {item}" for item in removed)
+        + (f"; averaged into {cells:,} cells" if report["parameters"]["averaging_cell"] else "")
+        + f"; {stats['outliers']:,} outliers dropped; {stats['phase1_points']:,} fit planes",
         *(f"parameter   {note}" for note in report["parameters"]["notes"]),
         f"orientation {stats['orientation_components']} component(s)",
         f"grid        {stats['grid_vertices']:,} vertices evaluated, "
@@ -69,8 +94,20 @@ def format_report(report: dict) -> str:
         f"repairs     {stats['small_holes_filled']} small hole(s) closed, "
         f"{stats['small_components_dropped']} tiny component(s) dropped, "
         f"{stats['bowtie_vertices_split']} bow-tie vertex(es) split",
+        *_fit_lines(report.get("fit")),
         "seconds     "
         + ", ".join(f"{name} {sec:.2f}" for name, sec in report["timings"].items())
         + f"; total {report['total_seconds']:.2f}",
     ]
     return "\n".join(lines)
+
+
+def _fit_lines(fit: dict | None) -> list[str]:
+    """One line on how far the input points lie from the mesh, when measured."""
+    if fit is None:
+        return []
+    distance = fit["distance"]
+    return [
+        f"fit         points lie {distance['mean']:.4g} (mean), {distance['p95']:.4g} (95 %) "
+        f"from the mesh; {fit['coverage']:.1%} within {fit['tau']:.4g} (1 % of their extent)"
+    ]
