@@ -1,4 +1,4 @@
-"""Phase-1 speed and memory benchmark; writes its results to docs/benchmarks.md.
+"""Phase-1 speed and memory benchmark; writes its section of docs/benchmarks.md.
 
 Run by hand from the repository root::
 
@@ -8,7 +8,9 @@ Every size runs in a fresh child process (this script with the hidden ``--child 
 so that the peak resident set size is that of one size alone. The child generates a noisy
 open pipe with `zeroset.synthetic.sample_cylinder`, runs one small warm-up reconstruction so
 that Numba JIT compilation is excluded, then times `repeat` full reconstructions and prints
-one JSON line. The parent takes medians and writes the Markdown report atomically.
+one JSON line. The parent takes medians and replaces the section between
+``<!-- phase1:begin -->`` and ``<!-- phase1:end -->`` of the Markdown report atomically,
+keeping the rest of the file (see ``_docfile.py``).
 """
 
 from __future__ import annotations
@@ -23,9 +25,10 @@ import resource
 import statistics
 import subprocess
 import sys
-import tempfile
 import time
 from pathlib import Path
+
+from _docfile import replace_section
 
 ROOT = Path(__file__).resolve().parents[1]
 DEFAULT_OUTPUT = ROOT / "docs" / "benchmarks.md"
@@ -160,10 +163,10 @@ def _verdict(ok: bool) -> str:
 
 
 def render(reports: list[dict], machine: dict, command: str, repeat: int) -> str:
-    """The Markdown report."""
+    """The Markdown text of the phase-1 section."""
     summaries = [summarise(report) for report in reports]
     out = [
-        "# Benchmarks",
+        "## Phase 1: speed and memory",
         "",
         "Phase-1 speed and memory of `zeroset.reconstruct()` on a noisy open pipe:",
         f"`zeroset.synthetic.sample_cylinder(n, radius={CYLINDER['radius']}, "
@@ -188,7 +191,7 @@ def render(reports: list[dict], machine: dict, command: str, repeat: int) -> str
         command,
         "```",
         "",
-        "## Machine",
+        "### Machine",
         "",
         f"- Date: {machine['date']}",
         f"- CPU: {machine['cpu']}; `os.cpu_count()` = {machine['cpu_count']}, "
@@ -197,7 +200,7 @@ def render(reports: list[dict], machine: dict, command: str, repeat: int) -> str
         f"- Python {machine['python']}, NumPy {machine['numpy']}, SciPy {machine['scipy']}, "
         f"Numba {machine['numba']}, zeroset {machine['zeroset']}",
         "",
-        "## Summary",
+        "### Summary",
         "",
         "| points | total median s | min-max s | peak RSS MiB | slowest stage | phase-1 points "
         "| faces | boundary loops |",
@@ -214,7 +217,7 @@ def render(reports: list[dict], machine: dict, command: str, repeat: int) -> str
             f"{stats.get('boundary_loops', 0)} |"
         )
 
-    out += ["", "## Targets", "", f"Target: {TARGET_TEXT}.", ""]
+    out += ["", "### Targets", "", f"Target: {TARGET_TEXT}.", ""]
     target = next(
         (pair for pair in zip(reports, summaries, strict=True) if pair[0]["n"] == TARGET_POINTS),
         None,
@@ -242,11 +245,11 @@ def render(reports: list[dict], machine: dict, command: str, repeat: int) -> str
         else:
             out += ["", f"Measured on {cores} cores, as the target specifies."]
 
-    out += ["", "## Stages", ""]
+    out += ["", "### Stages", ""]
     for report, summary in zip(reports, summaries, strict=True):
         stats = report["stats"]
         out += [
-            f"### {report['n']:,} points",
+            f"#### {report['n']:,} points",
             "",
             f"{stats.get('phase1_points', 0):,} phase-1 points, "
             f"{stats.get('outliers', 0)} outliers, {stats.get('grid_vertices', 0):,} grid "
@@ -265,20 +268,6 @@ def render(reports: list[dict], machine: dict, command: str, repeat: int) -> str
             out.append(f"| {label} | {seconds:.3f} |")
         out += [f"| **total** | **{summary['total']:.3f}** |", ""]
     return "\n".join(out).rstrip() + "\n"
-
-
-def write_atomic(path: Path, text: str) -> None:
-    """Write `text` to `path` through a temporary file in the same folder and os.replace."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    handle, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(handle, "w", encoding="utf-8") as file:
-            file.write(text)
-        os.chmod(temporary, 0o644)  # mkstemp makes it private; a document is world-readable
-        os.replace(temporary, path)
-    except BaseException:
-        Path(temporary).unlink(missing_ok=True)
-        raise
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -322,7 +311,7 @@ def main(argv: list[str] | None = None) -> int:
         + " ".join(str(n) for n in args.sizes)
         + f" --repeat {args.repeat}"
     )
-    write_atomic(args.output, render(reports, machine_info(), command, args.repeat))
+    replace_section(args.output, "phase1", render(reports, machine_info(), command, args.repeat))
     print(f"wrote {args.output}")
     return 0
 

@@ -1,0 +1,82 @@
+"""Shared by the benchmark scripts: each owns one section of docs/benchmarks.md.
+
+A section is the text between ``<!-- NAME:begin -->`` and ``<!-- NAME:end -->``. A script
+replaces its own section and keeps everything else in the file byte for byte: the shared
+introduction at the top and the other scripts' sections. A missing section is added in the
+order of `SECTIONS`; a missing file starts with `INTRO`. Every write goes through a temporary
+file in the same folder and `os.replace`, so an interrupted run leaves the old file intact.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from pathlib import Path
+
+SECTIONS = ("phase1", "peers")
+
+INTRO = """# Benchmarks
+
+Measured by the scripts in `benchmarks/`, run by hand. Each script rewrites only its own
+section of this file, between the HTML comments `<!-- NAME:begin -->` and `<!-- NAME:end -->`,
+and keeps the rest (this introduction included):
+
+- [Phase 1](#phase-1-speed-and-memory): speed and memory of `zeroset.reconstruct()` on a noisy
+  open pipe, 20k to 1M points (`benchmarks/bench_phase1.py`).
+- [Peers](#peers-zeroset-against-open3d-pymeshlab-and-vtk): zeroset against the tools a user
+  would otherwise pick (Open3D, PyMeshLab, VTK) on synthetic pipes with exact ground truth and
+  on real scans (`benchmarks/bench_peers.py`, needs the `bench` extra).
+"""
+
+
+def markers(name: str) -> tuple[str, str]:
+    """The begin and end comments of section `name`."""
+    return f"<!-- {name}:begin -->", f"<!-- {name}:end -->"
+
+
+def write_atomic(path: Path, data: str | bytes) -> None:
+    """Write `data` (text as UTF-8) to `path` through a temporary file and os.replace."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    handle, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(handle, "wb") as file:
+            file.write(data.encode("utf-8") if isinstance(data, str) else data)
+        os.chmod(temporary, 0o644)  # mkstemp makes it private; a document is world-readable
+        os.replace(temporary, path)
+    except BaseException:
+        Path(temporary).unlink(missing_ok=True)
+        raise
+
+
+def replace_section(path: Path, name: str, body: str) -> None:
+    """Put `body` between the markers of section `name` in `path`, keeping the rest."""
+    if name not in SECTIONS:
+        raise ValueError(f"unknown section {name!r}; expected one of {SECTIONS}")
+    begin, end = markers(name)
+    block = f"{begin}\n{body.strip()}\n{end}"
+    text = path.read_text(encoding="utf-8") if path.exists() else ""
+    if text.strip() and not any(markers(other)[0] in text for other in SECTIONS):
+        raise ValueError(
+            f"{path} has no section markers such as {begin!r}; add them around the generated "
+            "text, or move the file away, before running this script"
+        )
+    if not text.strip():
+        text = INTRO
+    if begin in text:
+        start = text.index(begin)
+        stop = text.find(end, start)
+        if stop < 0:
+            raise ValueError(f"{path} has {begin!r} but no {end!r} after it")
+        text = text[:start] + block + text[stop + len(end) :]
+    else:
+        later = [
+            text.index(markers(other)[0])
+            for other in SECTIONS[SECTIONS.index(name) + 1 :]
+            if markers(other)[0] in text
+        ]
+        if later:
+            at = min(later)
+            text = text[:at] + block + "\n\n" + text[at:]
+        else:
+            text = text.rstrip() + "\n\n" + block + "\n"
+    write_atomic(path, text)
