@@ -2,6 +2,8 @@
 
 from .config import ReconstructionConfig
 from .errors import InputError, ReconstructionError, ZerosetError
+from .optimization import OptimizationResult
+from .optimization import optimize_mesh as optimize
 from .pipeline import Reconstruction, reconstruct
 from .types import DistanceField, Mesh, Orientation, Parameters, PointCloud, TangentPlanes
 
@@ -9,6 +11,7 @@ __all__ = [
     "DistanceField",
     "InputError",
     "Mesh",
+    "OptimizationResult",
     "Orientation",
     "Parameters",
     "PointCloud",
@@ -17,6 +20,7 @@ __all__ = [
     "ReconstructionError",
     "TangentPlanes",
     "ZerosetError",
+    "optimize",
     "reconstruct",
 ]
 

@@ -1,4 +1,4 @@
-"""Command line: ``zeroset reconstruct``, ``demo``, ``synth``, ``evaluate``."""
+"""Command line: ``zeroset reconstruct``, ``optimize``, ``demo``, ``synth``, ``evaluate``."""
 
 from __future__ import annotations
 
@@ -58,8 +58,31 @@ def _parser() -> argparse.ArgumentParser:
     rec.add_argument("--report", type=Path, help="write parameters, counts and timings as JSON")
     rec.add_argument("--preview", type=Path, help="write a PNG picture of the mesh")
     rec.add_argument("--ascii", action="store_true", help="write PLY as text instead of binary")
+    rec.add_argument(
+        "--optimize",
+        action="store_true",
+        help="run phase 2, mesh optimisation (Hoppe 1993), on every point left after --crop",
+    )
     _add_config_options(rec)
     rec.set_defaults(command="reconstruct", run=_run_reconstruct)
+
+    opt = commands.add_parser(
+        "optimize",
+        parents=[common],
+        help="optimise a mesh against points (phase 2)",
+        description="Optimise a triangle mesh against the points it approximates (Hoppe "
+        "1993): edge collapse, split and swap and vertex fitting lower the energy "
+        "distance^2 + c_rep x vertices + kappa x edge lengths^2.",
+    )
+    opt.add_argument("mesh", type=Path, help="starting mesh: .ply .obj .stl .off")
+    opt.add_argument("points", type=Path, help="points: .ply .xyz .txt .csv .pts .npy .npz")
+    opt.add_argument("-o", "--output", type=Path, required=True, help="mesh: .ply .obj .stl .off")
+    opt.add_argument("--report", type=Path, help="write parameters, energies and moves as JSON")
+    opt.add_argument("--ascii", action="store_true", help="write PLY as text instead of binary")
+    opt.add_argument("--c-rep", type=float, help="cost of a vertex (default: from the noise)")
+    opt.add_argument("--kappa", type=float, help="first spring constant (default: from the data)")
+    opt.add_argument("--seed", type=int, default=0, help="seed of the random move order")
+    opt.set_defaults(command="optimize", run=_run_optimize)
 
     demo = commands.add_parser(
         "demo",
@@ -209,21 +232,14 @@ def _config_overrides(args: argparse.Namespace) -> dict:
 
 def _run_reconstruct(args: argparse.Namespace) -> int:
     from . import io
-    from .errors import InputError
     from .pipeline import reconstruct
 
-    if args.output.suffix.lower() not in io.MESH_FORMATS:
-        raise InputError(
-            f"{args.output}: unknown mesh format {args.output.suffix!r}; "
-            f"supported: {', '.join(io.MESH_FORMATS)}"
-        )
-    for target in (args.output, args.report, args.preview):
-        if target is not None and not target.resolve().parent.is_dir():
-            raise InputError(f"{target}: directory {target.parent} does not exist")
+    _check_outputs(args.output, args.report, args.preview)
     cloud = io.read_points(args.input)
     result = reconstruct(
         cloud.points,
         viewpoints=cloud.viewpoints,
+        optimize=args.optimize,
         progress=not args.quiet,
         **_config_overrides(args),
     )
@@ -236,6 +252,47 @@ def _run_reconstruct(args: argparse.Namespace) -> int:
         report_path=args.report,
         preview_path=args.preview,
     )
+
+
+def _run_optimize(args: argparse.Namespace) -> int:
+    from . import io
+    from .optimization import optimize_mesh
+    from .report import optimization_lines, optimization_report
+
+    _check_outputs(args.output, args.report)
+    mesh = io.read_mesh(args.mesh)
+    cloud = io.read_points(args.points)
+    result = optimize_mesh(
+        mesh, cloud.points, c_rep=args.c_rep, kappa=args.kappa, rng=args.seed,
+        progress=not args.quiet,
+    )  # fmt: skip
+    io.write_mesh(args.output, result.mesh, binary=not args.ascii)
+    report = optimization_report(result)
+    report["files"] = {"mesh": str(args.mesh), "points": str(args.points)}
+    if args.report is not None:
+        io.write_json(args.report, report)
+    if not args.quiet:
+        print("\n".join(optimization_lines(report)))
+        print(
+            "seconds     "
+            + ", ".join(f"{name} {sec:.2f}" for name, sec in report["timings"].items())
+        )
+        print(f"mesh        written to {args.output}")
+    return 0
+
+
+def _check_outputs(mesh: Path, *others: Path | None) -> None:
+    """Refuse an output mesh of unknown format, or any output whose folder is missing."""
+    from . import io
+    from .errors import InputError
+
+    if mesh.suffix.lower() not in io.MESH_FORMATS:
+        raise InputError(
+            f"{mesh}: unknown mesh format {mesh.suffix!r}; supported: {', '.join(io.MESH_FORMATS)}"
+        )
+    for target in (mesh, *others):
+        if target is not None and not target.resolve().parent.is_dir():
+            raise InputError(f"{target}: directory {target.parent} does not exist")
 
 
 def _run_demo(args: argparse.Namespace) -> int:

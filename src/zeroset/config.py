@@ -45,6 +45,12 @@ class ReconstructionConfig:
     )
     min_component_faces: int = _opt(20, "drop mesh components with fewer faces")
     max_hole_edges: int = _opt(6, "close boundary loops of at most this many edges (0: none)")
+    c_rep: float | None = _opt(
+        None, "phase 2: cost of a vertex, normalised to a unit diagonal (default: from the noise)"
+    )
+    kappa: float | None = _opt(
+        None, "phase 2: first spring constant of the decreasing schedule (default: from the data)"
+    )
     seed: int = _opt(0, "seed of every random choice")
 
     def __post_init__(self) -> None:

@@ -15,6 +15,7 @@ from .distance import signed_distance
 from .errors import InputError, ReconstructionError
 from .neighbours import knn, restrict, spatial_order
 from .normals import tangent_planes
+from .optimization import OptimizationResult, optimize_mesh
 from .orientation import orient_normals
 from .parameters import estimate_parameters
 from .prepare import average_in_cells, crop, drop_outliers, random_sample, voxel_sample
@@ -33,6 +34,7 @@ STAGES = (
     "signed distance",
     "contour",
 )
+OPTIMIZE_STAGE = "optimize"
 
 
 @dataclass(frozen=True, eq=False)
@@ -56,6 +58,10 @@ class Reconstruction:
     orientation : Orientation
     field : DistanceField
     config : ReconstructionConfig
+    initial_mesh : Mesh
+        Phase 1's mesh, in the input's coordinates (the same as `mesh` without phase 2).
+    optimization : OptimizationResult or None
+        Phase 2's energies, moves and parameters, when it ran.
     stats : dict
         Counts: points in and removed by each step, components, grid, mesh.
     timings : dict
@@ -70,6 +76,8 @@ class Reconstruction:
     orientation: Orientation
     field: DistanceField
     config: ReconstructionConfig
+    initial_mesh: Mesh
+    optimization: OptimizationResult | None = None
     stats: dict = field(default_factory=dict)
     timings: dict = field(default_factory=dict)
 
@@ -84,6 +92,7 @@ def reconstruct(
     config: ReconstructionConfig | None = None,
     *,
     viewpoints=None,
+    optimize: bool = False,
     progress: bool = False,
     **overrides,
 ) -> Reconstruction:
@@ -96,6 +105,9 @@ def reconstruct(
         All parameters; fields may also be given as keywords (``rho_delta=0.02``).
     viewpoints : (N, 3) array_like of float, optional
         Sensor position of every point; normals are oriented towards it.
+    optimize : bool
+        Run phase 2 (:func:`zeroset.optimize`, Hoppe et al. 1993) on phase 1's mesh with
+        every point left after cropping, including those that sampling kept from phase 1.
     progress : bool
         Show a progress bar when stderr is a terminal.
 
@@ -125,10 +137,10 @@ def reconstruct(
         if viewpoints.shape != points.shape:
             raise InputError(f"viewpoints must match points {points.shape}; got {viewpoints.shape}")
     stats: dict = {"input_points": points.shape[0]}
-    stages = Stages(STAGES, show=progress)
+    stages = Stages(STAGES + ((OPTIMIZE_STAGE,) if optimize else ()), show=progress)
     try:
         with stages.stage("prepare"):
-            rows = _prepare(points, config, stats)
+            rows, cropped = _prepare(points, config, stats)
             offset = (points[rows].min(axis=0) + points[rows].max(axis=0)) / 2.0
             local = points[rows] - offset
             if viewpoints is not None:
@@ -211,12 +223,29 @@ def reconstruct(
                     f"corners with a sign change; rho_delta={parameters.rho_delta:.4g} may be "
                     "too small for the point spacing"
                 )
+        initial_mesh = Mesh(vertices=mesh.vertices + offset, faces=mesh.faces)
+        optimization = None
+        if optimize:
+            with stages.stage(OPTIMIZE_STAGE):
+                optimization = optimize_mesh(
+                    mesh,
+                    points[cropped] - offset,
+                    c_rep=config.c_rep,
+                    kappa=config.kappa,
+                    rng=config.seed,
+                    progress=progress,
+                )
+                mesh = optimization.mesh
+                stats["phase2_points"] = optimization.stats["points_used"]
+                stats["phase2_points_ignored"] = optimization.stats["points_ignored"]
     finally:
         stages.close()
     mesh = Mesh(vertices=mesh.vertices + offset, faces=mesh.faces)
     stats.update(_mesh_stats(mesh))
     return Reconstruction(
         mesh=mesh,
+        initial_mesh=initial_mesh,
+        optimization=optimization,
         offset=offset,
         points=phase1,
         parameters=parameters,
@@ -229,12 +258,16 @@ def reconstruct(
     )
 
 
-def _prepare(points: np.ndarray, config: ReconstructionConfig, stats: dict) -> np.ndarray:
-    """Row indices of `points` kept by crop, random and voxel sampling, in spatial order."""
+def _prepare(
+    points: np.ndarray, config: ReconstructionConfig, stats: dict
+) -> tuple[np.ndarray, np.ndarray]:
+    """Row indices of `points` kept by crop, random and voxel sampling, in spatial order;
+    and those kept by the crop alone (phase 2's points)."""
     rows = np.arange(points.shape[0])
     if config.crop is not None:
         rows = rows[crop(points, config.crop[:3], config.crop[3:])]
         stats["cropped"] = points.shape[0] - rows.size
+    cropped = rows
     if config.sample is not None:
         before = rows.size
         rows = rows[random_sample(rows.size, config.sample, rng=config.seed)]
@@ -248,7 +281,7 @@ def _prepare(points: np.ndarray, config: ReconstructionConfig, stats: dict) -> n
         raise InputError(
             f"{rows.size} points left after preparation; a neighbourhood needs at least {needed}"
         )
-    return rows[spatial_order(points[rows])]
+    return rows[spatial_order(points[rows])], cropped
 
 
 def _check_spread(local: np.ndarray) -> None:

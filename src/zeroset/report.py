@@ -8,9 +8,10 @@ import numpy as np
 
 from ._validate import as_points, require_rng
 from .evaluate import compare_to_points
+from .optimization import OptimizationResult
 from .pipeline import Reconstruction
 
-__all__ = ["format_report", "reconstruction_report"]
+__all__ = ["format_report", "optimization_lines", "optimization_report", "reconstruction_report"]
 
 
 #: Points used to measure the fit of the mesh to the data in a report.
@@ -37,8 +38,9 @@ def reconstruction_report(
     -------
     dict
         Keys ``source``, ``parameters`` (values and ``notes``), ``config``, ``stats``,
-        ``timings`` (seconds per stage), ``total_seconds`` and, with `points`, ``fit``
-        (see :func:`zeroset.evaluate.compare_to_points`).
+        ``timings`` (seconds per stage), ``total_seconds``, with phase 2 ``optimization``
+        (see :func:`optimization_report`) and, with `points`, ``fit`` (see
+        :func:`zeroset.evaluate.compare_to_points`).
     """
     params = result.parameters
     report = {
@@ -57,6 +59,8 @@ def reconstruction_report(
         "timings": {name: round(seconds, 4) for name, seconds in result.timings.items()},
         "total_seconds": round(sum(result.timings.values()), 4),
     }
+    if result.optimization is not None:
+        report["optimization"] = optimization_report(result.optimization)
     if points is not None:
         points = as_points(points)
         if points.shape[0] > FIT_SAMPLES:
@@ -64,6 +68,38 @@ def reconstruction_report(
             points = points[np.sort(rows)]
         report["fit"] = compare_to_points(result.mesh, points)
     return report
+
+
+def optimization_report(result: OptimizationResult) -> dict:
+    """Return a JSON-ready summary of a phase-2 run: parameters, energies, moves, history."""
+    return {
+        "parameters": dict(result.parameters),
+        "energy_before": result.energy_before.as_dict(),
+        "energy": result.energy.as_dict(),
+        "moves": result.moves,
+        "stats": dict(result.stats),
+        "timings": {name: round(seconds, 4) for name, seconds in result.timings.items()},
+        "history": list(result.history),
+    }
+
+
+def optimization_lines(report: dict) -> list[str]:
+    """A few lines of text on a phase-2 run, from :func:`optimization_report`."""
+    stats, before, after = report["stats"], report["energy_before"], report["energy"]
+    moves = "; ".join(
+        f"{kind} {counts['accepted']:,} of {sum(counts.values()):,}"
+        for kind, counts in report["moves"].items()
+    )
+    return [
+        *(f"phase 2     {note}" for note in report["parameters"]["notes"]),
+        f"phase 2     {stats['faces_before']:,} -> {stats['faces']:,} triangles; "
+        f"{stats['points_used']:,} points, {stats['points_ignored']:,} left out as outliers",
+        "phase 2     energy (normalised) distance + representation + spring: "
+        f"{before['distance']:.4g} + {before['representation']:.4g} + {before['spring']:.4g} "
+        f"= {before['total']:.4g} -> {after['distance']:.4g} + {after['representation']:.4g} "
+        f"+ {after['spring']:.4g} = {after['total']:.4g}",
+        f"phase 2     moves accepted: {moves}",
+    ]
 
 
 def format_report(report: dict) -> str:
@@ -94,6 +130,7 @@ def format_report(report: dict) -> str:
         f"repairs     {stats['small_holes_filled']} small hole(s) closed, "
         f"{stats['small_components_dropped']} tiny component(s) dropped, "
         f"{stats['bowtie_vertices_split']} bow-tie vertex(es) split",
+        *(optimization_lines(report["optimization"]) if "optimization" in report else []),
         *_fit_lines(report.get("fit")),
         "seconds     "
         + ", ".join(f"{name} {sec:.2f}" for name, sec in report["timings"].items())

@@ -14,6 +14,8 @@ __all__ = [
     "half_edges",
     "boundary_loops",
     "edge_face_counts",
+    "edge_face_pairs",
+    "fold_cosines",
     "euler_characteristic",
     "face_components",
     "is_consistently_oriented",
@@ -43,6 +45,31 @@ def edge_ids(faces: np.ndarray, n_vertices: int) -> tuple[np.ndarray, np.ndarray
     key = half[:, 0] * np.int64(n_vertices) + half[:, 1]
     _, edge_of_half, counts = np.unique(key, return_inverse=True, return_counts=True)
     return edge_of_half.reshape(-1), counts
+
+
+def edge_face_pairs(faces: np.ndarray) -> np.ndarray:
+    """Return the (P, 2) int64 pairs of faces that share an edge, one row per interior edge.
+
+    On an edge-manifold mesh every edge with two faces gives one pair.
+    """
+    edge_of_half, _ = edge_ids(faces, int(faces.max(initial=-1)) + 1)
+    face_of_half = np.repeat(np.arange(faces.shape[0]), 3)
+    order = np.argsort(edge_of_half, kind="stable")
+    shared = edge_of_half[order[1:]] == edge_of_half[order[:-1]]
+    return np.column_stack([face_of_half[order[:-1][shared]], face_of_half[order[1:][shared]]])
+
+
+def fold_cosines(vertices: np.ndarray, faces: np.ndarray, pairs: np.ndarray) -> np.ndarray:
+    """Return the cosine (P,) between the unit normals of each face pair (P, 2).
+
+    1 where the two faces are coplanar, -1 where one is folded back onto the other; NaN
+    where a face is degenerate (no normal).
+    """
+    corners = vertices[faces]
+    normals = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+    length = np.linalg.norm(normals, axis=1, keepdims=True)
+    normals = np.divide(normals, length, out=np.full_like(normals, np.nan), where=length > 0)
+    return np.einsum("ij,ij->i", normals[pairs[:, 0]], normals[pairs[:, 1]])
 
 
 def corner_fans(faces: np.ndarray, edge_of_half: np.ndarray) -> tuple[np.ndarray, int]:

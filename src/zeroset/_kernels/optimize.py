@@ -1,0 +1,884 @@
+"""Local moves of the mesh optimisation: edge collapse, split and swap (Hoppe et al. 1993, §4).
+
+The mesh lives in flat arrays with spare capacity, bundled in one tuple ``state``:
+
+    V (Vc, 3) float64    vertex positions          alive_v (Vc,) bool
+    F (Fc, 3) int64      faces, counter-clockwise   alive_f (Fc,) bool
+    vf (Vc, W) int64     faces around each vertex   deg (Vc,) int64 (how many)
+    X (N, 3) float64     data points
+    pf (N,) int64        face each point is assigned to (its projection)
+    pb (N, 3) float64    barycentric coordinates of the projection in that face
+    pd (N,) float64      squared distance to the projection
+    head (Fc,) int64     first point of each face's list (-1: none)
+    nxt, prv (N,) int64  doubly linked point lists per face
+    count (Fc,) int64    points per face
+    sizes (3,) int64     used vertex slots, used face slots, live vertices
+
+A move is evaluated locally (Hoppe 1993, §4.3): only the points on the faces it changes are
+projected again, onto the new faces only, and only the new vertex is optimised (a few
+alternations of projection and a one-vertex least-squares solve). Projecting onto a subset
+of the faces over-estimates each distance, so an accepted move lowers the true energy at
+least as much as computed.
+"""
+
+import numpy as np
+
+from ._jit import jit
+
+ACCEPTED = 0
+ENERGY_INCREASE = 1
+ILLEGAL_TOPOLOGY = 2
+BAD_DIHEDRAL = 3
+
+COLLAPSE = 0
+SPLIT = 1
+SWAP = 2
+
+H = -1  # corner index standing for the new vertex in candidate faces
+_LOCAL_ITERATIONS = 2  # alternations of projection and vertex solve per candidate start
+
+
+@jit
+def project_to_triangle(px, py, pz, ax, ay, az, bx, by, bz, cx, cy, cz):
+    # Closest point of triangle abc to p, by Voronoi regions (Ericson 2005, §5.1.5).
+    # Returns the squared distance and the barycentric coordinates (u, v, w) of the foot.
+    abx, aby, abz = bx - ax, by - ay, bz - az
+    acx, acy, acz = cx - ax, cy - ay, cz - az
+    apx, apy, apz = px - ax, py - ay, pz - az
+    d1 = abx * apx + aby * apy + abz * apz
+    d2 = acx * apx + acy * apy + acz * apz
+    u, v, w = 1.0, 0.0, 0.0
+    if d1 <= 0.0 and d2 <= 0.0:
+        u, v, w = 1.0, 0.0, 0.0
+    else:
+        bpx, bpy, bpz = px - bx, py - by, pz - bz
+        d3 = abx * bpx + aby * bpy + abz * bpz
+        d4 = acx * bpx + acy * bpy + acz * bpz
+        cpx, cpy, cpz = px - cx, py - cy, pz - cz
+        d5 = abx * cpx + aby * cpy + abz * cpz
+        d6 = acx * cpx + acy * cpy + acz * cpz
+        vc = d1 * d4 - d3 * d2
+        vb = d5 * d2 - d1 * d6
+        va = d3 * d6 - d5 * d4
+        if d3 >= 0.0 and d4 <= d3:
+            u, v, w = 0.0, 1.0, 0.0
+        elif d6 >= 0.0 and d5 <= d6:
+            u, v, w = 0.0, 0.0, 1.0
+        elif vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:
+            t = d1 / (d1 - d3) if d1 - d3 > 0.0 else 0.0
+            u, v, w = 1.0 - t, t, 0.0
+        elif vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:
+            t = d2 / (d2 - d6) if d2 - d6 > 0.0 else 0.0
+            u, v, w = 1.0 - t, 0.0, t
+        elif va <= 0.0 and d4 - d3 >= 0.0 and d5 - d6 >= 0.0:
+            t = (d4 - d3) / ((d4 - d3) + (d5 - d6)) if (d4 - d3) + (d5 - d6) > 0.0 else 0.0
+            u, v, w = 0.0, 1.0 - t, t
+        else:
+            total = va + vb + vc
+            if total > 0.0:
+                v, w = vb / total, vc / total
+                u = 1.0 - v - w
+            else:  # a degenerate triangle whose regions all failed: take its nearest corner
+                da = apx * apx + apy * apy + apz * apz
+                db = bpx * bpx + bpy * bpy + bpz * bpz
+                dc = cpx * cpx + cpy * cpy + cpz * cpz
+                if da <= db and da <= dc:
+                    u, v, w = 1.0, 0.0, 0.0
+                elif db <= dc:
+                    u, v, w = 0.0, 1.0, 0.0
+                else:
+                    u, v, w = 0.0, 0.0, 1.0
+    qx = u * ax + v * bx + w * cx
+    qy = u * ay + v * by + w * cy
+    qz = u * az + v * bz + w * cz
+    return (px - qx) ** 2 + (py - qy) ** 2 + (pz - qz) ** 2, u, v, w
+
+
+@jit
+def project_rows(points, a, b, c, distance2, bary):
+    # project_to_triangle for every row: (N, 3) points and corners; fills (N,) and (N, 3).
+    for n in range(points.shape[0]):
+        d2, u, v, w = project_to_triangle(
+            points[n, 0], points[n, 1], points[n, 2],
+            a[n, 0], a[n, 1], a[n, 2], b[n, 0], b[n, 1], b[n, 2], c[n, 0], c[n, 1], c[n, 2],
+        )  # fmt: skip
+        distance2[n] = d2
+        bary[n, 0], bary[n, 1], bary[n, 2] = u, v, w
+
+
+# ------------------------------------------------------------------ building and reading
+
+
+@jit
+def build_state(vertices, faces, points, face_of_point, bary, distance2, width, spare_v, spare_f):
+    """Return the state tuple for a mesh and an assignment of points to faces.
+
+    `width` is the most faces a vertex may have; `spare_v`, `spare_f` the extra slots that
+    splits may fill. Faces with a vertex of more than `width` faces are not allowed.
+    """
+    n_v, n_f, n_p = vertices.shape[0], faces.shape[0], points.shape[0]
+    vc, fc = n_v + spare_v, n_f + spare_f
+    V = np.zeros((vc, 3))
+    V[:n_v] = vertices
+    F = np.full((fc, 3), -1, dtype=np.int64)
+    F[:n_f] = faces
+    alive_v = np.zeros(vc, dtype=np.bool_)
+    alive_f = np.zeros(fc, dtype=np.bool_)
+    alive_f[:n_f] = True
+    vf = np.full((vc, width), -1, dtype=np.int64)
+    deg = np.zeros(vc, dtype=np.int64)
+    for f in range(n_f):
+        for corner in range(3):
+            v = faces[f, corner]
+            alive_v[v] = True
+            vf[v, deg[v]] = f
+            deg[v] += 1
+    head = np.full(fc, -1, dtype=np.int64)
+    nxt = np.full(n_p, -1, dtype=np.int64)
+    prv = np.full(n_p, -1, dtype=np.int64)
+    count = np.zeros(fc, dtype=np.int64)
+    pf = face_of_point.copy()
+    for p in range(n_p):
+        _link(head, nxt, prv, count, pf[p], p)
+    sizes = np.array([n_v, n_f, np.count_nonzero(alive_v)], dtype=np.int64)
+    return (
+        V, F, alive_v, alive_f, vf, deg, points, pf, bary.copy(), distance2.copy(),
+        head, nxt, prv, count, sizes,
+    )  # fmt: skip
+
+
+@jit
+def _link(head, nxt, prv, count, f, p):
+    # Put point p at the front of face f's list.
+    prv[p] = -1
+    nxt[p] = head[f]
+    if head[f] >= 0:
+        prv[head[f]] = p
+    head[f] = p
+    count[f] += 1
+
+
+@jit
+def _unlink(head, nxt, prv, count, f, p):
+    # Take point p out of face f's list.
+    if prv[p] >= 0:
+        nxt[prv[p]] = nxt[p]
+    else:
+        head[f] = nxt[p]
+    if nxt[p] >= 0:
+        prv[nxt[p]] = prv[p]
+    count[f] -= 1
+
+
+@jit
+def edges_of(state):
+    """Return the (E, 2) undirected edges (a < b) of the live faces, each once."""
+    F, alive_f = state[1], state[3]
+    n = 0
+    out = np.zeros((3 * F.shape[0], 2), dtype=np.int64)
+    for f in range(F.shape[0]):
+        if not alive_f[f]:
+            continue
+        for c in range(3):
+            a, b = F[f, c], F[f, (c + 1) % 3]
+            out[n, 0], out[n, 1] = min(a, b), max(a, b)
+            n += 1
+    return out[:n]
+
+
+# ------------------------------------------------------------------ topology queries
+
+
+@jit
+def _has(values, n, x):
+    for k in range(n):
+        if values[k] == x:
+            return True
+    return False
+
+
+@jit
+def _contains(F, f, v):
+    return F[f, 0] == v or F[f, 1] == v or F[f, 2] == v
+
+
+@jit
+def _edge_faces(state, i, j, out):
+    # Faces holding both i and j, into out; returns how many.
+    F, vf, deg = state[1], state[4], state[5]
+    n = 0
+    for k in range(deg[i]):
+        f = vf[i, k]
+        if _contains(F, f, j):
+            if n < out.shape[0]:
+                out[n] = f
+            n += 1
+    return n
+
+
+@jit
+def _neighbours(state, v, out):
+    # Distinct vertices sharing an edge with v, into out; returns how many and whether v
+    # lies on the boundary (some edge of v belongs to one face only).
+    F, vf, deg = state[1], state[4], state[5]
+    n = 0
+    seen = np.zeros(out.shape[0], dtype=np.int64)
+    for k in range(deg[v]):
+        f = vf[v, k]
+        for c in range(3):
+            u = F[f, c]
+            if u == v:
+                continue
+            found = False
+            for m in range(n):
+                if out[m] == u:
+                    seen[m] += 1
+                    found = True
+                    break
+            if not found:
+                out[n] = u
+                seen[n] = 1
+                n += 1
+    boundary = False
+    for m in range(n):
+        if seen[m] == 1:
+            boundary = True
+    return n, boundary
+
+
+@jit
+def _opposite(F, f, i, j):
+    # The corner of face f that is neither i nor j.
+    for c in range(3):
+        if F[f, c] != i and F[f, c] != j:
+            return F[f, c]
+    return -1
+
+
+@jit
+def _remove_face(vf, deg, v, f):
+    for k in range(deg[v]):
+        if vf[v, k] == f:
+            deg[v] -= 1
+            vf[v, k] = vf[v, deg[v]]
+            vf[v, deg[v]] = -1
+            return
+
+
+@jit
+def _add_face(vf, deg, v, f):
+    vf[v, deg[v]] = f
+    deg[v] += 1
+
+
+# ------------------------------------------------------------------ geometry of candidates
+
+
+@jit
+def _corner(V, v, h, axis):
+    return h[axis] if v == H else V[v, axis]
+
+
+@jit
+def _normal(V, h, a, b, c):
+    # Unit normal of triangle (a, b, c), corners H meaning position h; zeros if degenerate.
+    ux = _corner(V, b, h, 0) - _corner(V, a, h, 0)
+    uy = _corner(V, b, h, 1) - _corner(V, a, h, 1)
+    uz = _corner(V, b, h, 2) - _corner(V, a, h, 2)
+    wx = _corner(V, c, h, 0) - _corner(V, a, h, 0)
+    wy = _corner(V, c, h, 1) - _corner(V, a, h, 1)
+    wz = _corner(V, c, h, 2) - _corner(V, a, h, 2)
+    nx, ny, nz = uy * wz - uz * wy, uz * wx - ux * wz, ux * wy - uy * wx
+    length = np.sqrt(nx * nx + ny * ny + nz * nz)
+    scale = max(ux * ux + uy * uy + uz * uz, wx * wx + wy * wy + wz * wz)
+    if length <= 1e-12 * scale or length == 0.0:
+        return 0.0, 0.0, 0.0, False
+    return nx / length, ny / length, nz / length, True
+
+
+@jit
+def _worst_fold(state, region, n_region, new_faces, n_new, h, min_cos):
+    # Smallest cosine between the normals of two faces sharing an edge, over every edge of
+    # the candidate faces `new_faces` (H = the new vertex at h), and how many of those are
+    # below min_cos; `region` are the faces they replace. (-2, -1) if a candidate face is
+    # degenerate.
+    V, F, vf, deg = state[0], state[1], state[4], state[5]
+    worst = 1.0
+    bad = 0
+    for t in range(n_new):
+        nx, ny, nz, ok = _normal(V, h, new_faces[t, 0], new_faces[t, 1], new_faces[t, 2])
+        if not ok:
+            return -2.0, -1
+        for c in range(3):
+            a, b = new_faces[t, c], new_faces[t, (c + 1) % 3]
+            # The neighbour across (a, b): another candidate face, or a live face outside
+            # the region.
+            found = False
+            for s in range(n_new):
+                if s != t and _has(new_faces[s], 3, a) and _has(new_faces[s], 3, b):
+                    mx, my, mz, _ = _normal(V, h, new_faces[s, 0], new_faces[s, 1], new_faces[s, 2])
+                    cos = nx * mx + ny * my + nz * mz
+                    worst = min(worst, cos)
+                    bad += cos < min_cos
+                    found = True
+                    break
+            if found or a == H or b == H:
+                continue
+            for k in range(deg[a]):
+                g = vf[a, k]
+                if _contains(F, g, b) and not _has(region, n_region, g):
+                    mx, my, mz, _ = _normal(V, h, F[g, 0], F[g, 1], F[g, 2])
+                    cos = nx * mx + ny * my + nz * mz
+                    worst = min(worst, cos)
+                    bad += cos < min_cos
+    return worst, bad
+
+
+@jit
+def _region_fold(state, region, n_region, min_cos):
+    # The same as _worst_fold over the edges of the region faces, before the move.
+    V, F, vf, deg = state[0], state[1], state[4], state[5]
+    h = np.zeros(3)
+    worst = 1.0
+    bad = 0
+    for r in range(n_region):
+        f = region[r]
+        nx, ny, nz, ok = _normal(V, h, F[f, 0], F[f, 1], F[f, 2])
+        if not ok:
+            return -2.0, 3 * n_region
+        for c in range(3):
+            a, b = F[f, c], F[f, (c + 1) % 3]
+            for k in range(deg[a]):
+                g = vf[a, k]
+                if g != f and _contains(F, g, b):
+                    mx, my, mz, _ = _normal(V, h, F[g, 0], F[g, 1], F[g, 2])
+                    cos = nx * mx + ny * my + nz * mz
+                    worst = min(worst, cos)
+                    bad += cos < min_cos
+    return worst, bad
+
+
+@jit
+def _gather_points(state, region, n_region):
+    # The points assigned to the region faces, and the sum of their squared distances.
+    pd, head, nxt, count = state[9], state[10], state[11], state[13]
+    total = 0
+    for r in range(n_region):
+        total += count[region[r]]
+    out = np.zeros(total, dtype=np.int64)
+    n = 0
+    energy = 0.0
+    for r in range(n_region):
+        p = head[region[r]]
+        while p >= 0:
+            out[n] = p
+            energy += pd[p]
+            n += 1
+            p = nxt[p]
+    return out, energy
+
+
+@jit
+def _project_local(state, pts, new_faces, n_new, h, best_face, best_bary, best_d2):
+    # Project every point in pts onto the nearest candidate face; returns the energy.
+    # A face is skipped when its bounding sphere is no nearer than the best face so far.
+    V, X = state[0], state[6]
+    corners = np.zeros((n_new, 9))
+    sphere = np.zeros((n_new, 4))
+    for t in range(n_new):
+        for c in range(3):
+            for axis in range(3):
+                corners[t, 3 * c + axis] = _corner(V, new_faces[t, c], h, axis)
+        for axis in range(3):
+            sphere[t, axis] = (corners[t, axis] + corners[t, 3 + axis] + corners[t, 6 + axis]) / 3.0
+        radius2 = 0.0
+        for c in range(3):
+            r2 = 0.0
+            for axis in range(3):
+                r2 += (corners[t, 3 * c + axis] - sphere[t, axis]) ** 2
+            radius2 = max(radius2, r2)
+        sphere[t, 3] = np.sqrt(radius2)
+    energy = 0.0
+    for q in range(pts.shape[0]):
+        p = pts[q]
+        px, py, pz = X[p, 0], X[p, 1], X[p, 2]
+        best = np.inf
+        for t in range(n_new):
+            gap = (
+                np.sqrt(
+                    (px - sphere[t, 0]) ** 2 + (py - sphere[t, 1]) ** 2 + (pz - sphere[t, 2]) ** 2
+                )
+                - sphere[t, 3]
+            )
+            if gap > 0.0 and gap * gap >= best:
+                continue
+            k = corners[t]
+            d2, u, v, w = project_to_triangle(
+                px, py, pz, k[0], k[1], k[2], k[3], k[4], k[5], k[6], k[7], k[8]
+            )
+            if d2 < best:
+                best = d2
+                best_face[q] = t
+                best_bary[q, 0], best_bary[q, 1], best_bary[q, 2] = u, v, w
+        best_d2[q] = best
+        energy += best
+    return energy
+
+
+@jit
+def _spring(V, h, ring, n_ring):
+    # Sum of squared lengths of the edges from h to the ring vertices.
+    total = 0.0
+    for m in range(n_ring):
+        u = ring[m]
+        total += (h[0] - V[u, 0]) ** 2 + (h[1] - V[u, 1]) ** 2 + (h[2] - V[u, 2]) ** 2
+    return total
+
+
+@jit
+def _fit_vertex(state, pts, new_faces, n_new, ring, n_ring, kappa, start, face, bary, d2):
+    # Optimise the new vertex from `start`: alternate projecting the points onto the
+    # candidate faces and the least-squares position of the one free vertex (Hoppe 1993,
+    # §4.3): min_h sum_p |x_p - sum_c b_pc v_c|^2 + kappa sum_ring |h - v_u|^2.
+    # Returns the local energy (distances plus springs) and the position, in h.
+    V, X = state[0], state[6]
+    h = start.copy()
+    energy = _project_local(state, pts, new_faces, n_new, h, face, bary, d2)
+    energy += kappa * _spring(V, h, ring, n_ring)
+    for _ in range(_LOCAL_ITERATIONS):
+        weight = kappa * n_ring
+        rx = ry = rz = 0.0
+        for m in range(n_ring):
+            rx += kappa * V[ring[m], 0]
+            ry += kappa * V[ring[m], 1]
+            rz += kappa * V[ring[m], 2]
+        for q in range(pts.shape[0]):
+            t = face[q]
+            bh = 0.0
+            ox, oy, oz = X[pts[q], 0], X[pts[q], 1], X[pts[q], 2]
+            for c in range(3):
+                v = new_faces[t, c]
+                if v == H:
+                    bh = bary[q, c]
+                else:
+                    ox -= bary[q, c] * V[v, 0]
+                    oy -= bary[q, c] * V[v, 1]
+                    oz -= bary[q, c] * V[v, 2]
+            weight += bh * bh
+            rx += bh * ox
+            ry += bh * oy
+            rz += bh * oz
+        if weight <= 1e-300:
+            break
+        trial = np.array([rx / weight, ry / weight, rz / weight])
+        trial_face = face.copy()
+        trial_bary = bary.copy()
+        trial_d2 = d2.copy()
+        trial_energy = _project_local(
+            state, pts, new_faces, n_new, trial, trial_face, trial_bary, trial_d2
+        )
+        trial_energy += kappa * _spring(V, trial, ring, n_ring)
+        if trial_energy >= energy:
+            break
+        h, energy = trial, trial_energy
+        face[:] = trial_face
+        bary[:] = trial_bary
+        d2[:] = trial_d2
+    return energy, h
+
+
+@jit
+def _best_fit(state, pts, new_faces, n_new, ring, n_ring, kappa, starts, face, bary, d2):
+    # _fit_vertex from each row of `starts`; keeps the lowest energy.
+    best_energy, best_h = np.inf, starts[0].copy()
+    f_try = np.zeros_like(face)
+    b_try = np.zeros_like(bary)
+    d_try = np.zeros_like(d2)
+    for s in range(starts.shape[0]):
+        energy, h = _fit_vertex(
+            state, pts, new_faces, n_new, ring, n_ring, kappa, starts[s], f_try, b_try, d_try
+        )
+        if energy < best_energy:
+            best_energy, best_h = energy, h
+            face[:] = f_try
+            bary[:] = b_try
+            d2[:] = d_try
+    return best_energy, best_h
+
+
+@jit
+def _reassign(state, pts, global_face, face, bary, d2):
+    # Move each point to its new face with its new projection.
+    pf, pb, pd, head, nxt, prv, count = (
+        state[7],
+        state[8],
+        state[9],
+        state[10],
+        state[11],
+        state[12],
+        state[13],
+    )
+    for q in range(pts.shape[0]):
+        p = pts[q]
+        _unlink(head, nxt, prv, count, pf[p], p)
+        pf[p] = global_face[face[q]]
+        pb[p, 0], pb[p, 1], pb[p, 2] = bary[q, 0], bary[q, 1], bary[q, 2]
+        pd[p] = d2[q]
+        _link(head, nxt, prv, count, pf[p], p)
+
+
+@jit
+def _fold_ok(state, region, n_region, new_faces, n_new, h, min_cos):
+    # No candidate face is degenerate, and no fold between neighbouring faces is sharper
+    # than `min_cos`; where the region was folded before, the move may not add folds nor
+    # sharpen the sharpest one.
+    after, bad_after = _worst_fold(state, region, n_region, new_faces, n_new, h, min_cos)
+    if bad_after < 0:
+        return False
+    if bad_after == 0:
+        return True
+    before, bad_before = _region_fold(state, region, n_region, min_cos)
+    return bad_after <= bad_before and after >= before - 1e-12
+
+
+# ------------------------------------------------------------------ the three moves
+
+
+@jit
+def try_collapse(state, i, j, kappa, c_rep, min_cos, force, result):
+    """Collapse edge (i, j) into one vertex if that is legal and lowers the energy.
+
+    `result` (2,) float64 gets the energy change and the number of the surviving vertex.
+    Returns an outcome code. With `force`, any legal move is made.
+    """
+    V, F, alive_v, alive_f, vf, deg = state[0], state[1], state[2], state[3], state[4], state[5]
+    width = vf.shape[1]
+    if i == j or not alive_v[i] or not alive_v[j]:
+        return ILLEGAL_TOPOLOGY
+    edge = np.zeros(4, dtype=np.int64)
+    n_edge = _edge_faces(state, i, j, edge)
+    if n_edge < 1 or n_edge > 2:
+        return ILLEGAL_TOPOLOGY
+    ring_i = np.zeros(2 * width, dtype=np.int64)
+    ring_j = np.zeros(2 * width, dtype=np.int64)
+    n_i, boundary_i = _neighbours(state, i, ring_i)
+    n_j, boundary_j = _neighbours(state, j, ring_j)
+    # Hoppe 1993 §4.1: an edge joining two boundary vertices must be a boundary edge.
+    if boundary_i and boundary_j and n_edge == 2:
+        return ILLEGAL_TOPOLOGY
+    # Link condition: the common neighbours of i and j are the corners opposite the edge.
+    common = 0
+    for m in range(n_i):
+        if _has(ring_j, n_j, ring_i[m]):
+            common += 1
+    if common != n_edge:
+        return ILLEGAL_TOPOLOGY
+    # The same with the boundary closed by a virtual vertex joined to it: a boundary face
+    # whose other two edges are boundary edges too (an ear) may not collapse.
+    if n_edge == 1:
+        k = _opposite(F, edge[0], i, j)
+        probe = np.zeros(4, dtype=np.int64)
+        if _edge_faces(state, i, k, probe) == 1 and _edge_faces(state, j, k, probe) == 1:
+            return ILLEGAL_TOPOLOGY
+    # The mesh keeps more than a tetrahedron (or a triangle, at a boundary).
+    if state[14][2] <= (3 if boundary_i or boundary_j else 4):
+        return ILLEGAL_TOPOLOGY
+    if deg[i] + deg[j] - 2 * n_edge > width:
+        return ILLEGAL_TOPOLOGY
+    # Region: faces around i or j. Candidates: the same faces with i, j -> H, minus the
+    # faces on the edge.
+    region = np.zeros(deg[i] + deg[j], dtype=np.int64)
+    n_region = 0
+    for k in range(deg[i]):
+        region[n_region] = vf[i, k]
+        n_region += 1
+    for k in range(deg[j]):
+        if not _contains(F, vf[j, k], i):
+            region[n_region] = vf[j, k]
+            n_region += 1
+    new_faces = np.zeros((n_region, 3), dtype=np.int64)
+    global_face = np.zeros(n_region, dtype=np.int64)
+    n_new = 0
+    for r in range(n_region):
+        f = region[r]
+        if _contains(F, f, i) and _contains(F, f, j):
+            continue
+        for c in range(3):
+            v = F[f, c]
+            new_faces[n_new, c] = H if (v == i or v == j) else v
+        global_face[n_new] = f
+        n_new += 1
+    ring = np.zeros(n_i + n_j, dtype=np.int64)
+    n_ring = 0
+    for m in range(n_i):
+        if ring_i[m] != j:
+            ring[n_ring] = ring_i[m]
+            n_ring += 1
+    for m in range(n_j):
+        if ring_j[m] != i and not _has(ring, n_ring, ring_j[m]):
+            ring[n_ring] = ring_j[m]
+            n_ring += 1
+    pts, old = _gather_points(state, region, n_region)
+    for m in range(n_i):
+        u = ring_i[m]
+        old += kappa * (
+            (V[i, 0] - V[u, 0]) ** 2 + (V[i, 1] - V[u, 1]) ** 2 + (V[i, 2] - V[u, 2]) ** 2
+        )
+    for m in range(n_j):
+        u = ring_j[m]
+        if u != i:
+            old += kappa * (
+                (V[j, 0] - V[u, 0]) ** 2 + (V[j, 1] - V[u, 1]) ** 2 + (V[j, 2] - V[u, 2]) ** 2
+            )
+    # One start: the midpoint, or the boundary end point when only one end is on the
+    # boundary, so that the boundary keeps its place (Hoppe 1993 tries all three; the local
+    # solve moves the vertex from there).
+    starts = np.zeros((1, 3))
+    if boundary_i and not boundary_j:
+        starts[0] = V[i]
+    elif boundary_j and not boundary_i:
+        starts[0] = V[j]
+    else:
+        starts[0] = 0.5 * (V[i] + V[j])
+    face = np.zeros(pts.shape[0], dtype=np.int64)
+    bary = np.zeros((pts.shape[0], 3))
+    d2 = np.zeros(pts.shape[0])
+    new, h = _best_fit(state, pts, new_faces, n_new, ring, n_ring, kappa, starts, face, bary, d2)
+    delta = new - old - c_rep
+    result[0] = delta
+    result[1] = i
+    if not force and delta >= 0.0:
+        return ENERGY_INCREASE
+    if not _fold_ok(state, region, n_region, new_faces, n_new, h, min_cos):
+        return BAD_DIHEDRAL
+    # Apply: i survives at h, j and the faces on the edge go.
+    V[i] = h
+    for e in range(n_edge):
+        f = edge[e]
+        alive_f[f] = False
+        for c in range(3):
+            _remove_face(vf, deg, F[f, c], f)
+    for k in range(deg[j]):
+        f = vf[j, k]
+        for c in range(3):
+            if F[f, c] == j:
+                F[f, c] = i
+        _add_face(vf, deg, i, f)
+    deg[j] = 0
+    alive_v[j] = False
+    state[14][2] -= 1
+    _reassign(state, pts, global_face, face, bary, d2)
+    return ACCEPTED
+
+
+@jit
+def try_split(state, i, j, kappa, c_rep, min_cos, force, result):
+    """Split edge (i, j) at a new vertex if that lowers the energy (always legal).
+
+    `result` gets the energy change and the new vertex. Returns an outcome code.
+    """
+    V, F, alive_v, alive_f, vf, deg = state[0], state[1], state[2], state[3], state[4], state[5]
+    sizes = state[14]
+    width = vf.shape[1]
+    if i == j or not alive_v[i] or not alive_v[j]:
+        return ILLEGAL_TOPOLOGY
+    edge = np.zeros(4, dtype=np.int64)
+    n_edge = _edge_faces(state, i, j, edge)
+    if n_edge < 1 or n_edge > 2:
+        return ILLEGAL_TOPOLOGY
+    if sizes[0] >= V.shape[0] or sizes[1] + n_edge > F.shape[0]:
+        return ILLEGAL_TOPOLOGY  # no room left; not a property of the mesh
+    new_faces = np.zeros((2 * n_edge, 3), dtype=np.int64)
+    global_face = np.zeros(2 * n_edge, dtype=np.int64)
+    ring = np.zeros(2 + n_edge, dtype=np.int64)
+    ring[0], ring[1] = i, j
+    for e in range(n_edge):
+        f = edge[e]
+        k = _opposite(F, f, i, j)
+        if deg[k] + 1 > width:
+            return ILLEGAL_TOPOLOGY
+        ring[2 + e] = k
+        # Rotate so that the face reads (x, y, k) with {x, y} = {i, j}.
+        c = 0
+        while F[f, (c + 2) % 3] != k:
+            c += 1
+        x, y = F[f, c], F[f, (c + 1) % 3]
+        new_faces[2 * e, 0], new_faces[2 * e, 1], new_faces[2 * e, 2] = x, H, k
+        new_faces[2 * e + 1, 0], new_faces[2 * e + 1, 1], new_faces[2 * e + 1, 2] = H, y, k
+        global_face[2 * e] = f
+        global_face[2 * e + 1] = sizes[1] + e
+    pts, old = _gather_points(state, edge, n_edge)
+    old += kappa * ((V[i, 0] - V[j, 0]) ** 2 + (V[i, 1] - V[j, 1]) ** 2 + (V[i, 2] - V[j, 2]) ** 2)
+    if not force and old <= c_rep:
+        # The new energy is at least 0: the split cannot pay for its vertex.
+        result[0] = c_rep - old
+        result[1] = sizes[0]
+        return ENERGY_INCREASE
+    starts = np.zeros((1, 3))
+    starts[0] = 0.5 * (V[i] + V[j])
+    face = np.zeros(pts.shape[0], dtype=np.int64)
+    bary = np.zeros((pts.shape[0], 3))
+    d2 = np.zeros(pts.shape[0])
+    new, h = _best_fit(
+        state, pts, new_faces, 2 * n_edge, ring, 2 + n_edge, kappa, starts, face, bary, d2
+    )
+    delta = new - old + c_rep
+    result[0] = delta
+    result[1] = sizes[0]
+    if not force and delta >= 0.0:
+        return ENERGY_INCREASE
+    if not _fold_ok(state, edge, n_edge, new_faces, 2 * n_edge, h, min_cos):
+        return BAD_DIHEDRAL
+    # Apply: vertex s at h; face f becomes (x, s, k), a new face g is (s, y, k).
+    s = sizes[0]
+    sizes[0] += 1
+    sizes[2] += 1
+    V[s] = h
+    alive_v[s] = True
+    deg[s] = 0
+    for e in range(n_edge):
+        f, g = global_face[2 * e], global_face[2 * e + 1]
+        x, y, k = new_faces[2 * e, 0], new_faces[2 * e + 1, 1], new_faces[2 * e, 2]
+        F[f, 0], F[f, 1], F[f, 2] = x, s, k
+        _remove_face(vf, deg, y, f)
+        _add_face(vf, deg, s, f)
+        F[g, 0], F[g, 1], F[g, 2] = s, y, k
+        alive_f[g] = True
+        _add_face(vf, deg, s, g)
+        _add_face(vf, deg, y, g)
+        _add_face(vf, deg, k, g)
+    sizes[1] += n_edge
+    _reassign(state, pts, global_face, face, bary, d2)
+    return ACCEPTED
+
+
+@jit
+def try_swap(state, i, j, kappa, c_rep, min_cos, force, result):
+    """Swap interior edge (i, j) for the other diagonal (k, m) if legal and lowering energy.
+
+    `result` gets the energy change. Returns an outcome code.
+    """
+    V, F, alive_v, vf, deg = state[0], state[1], state[2], state[4], state[5]
+    width = vf.shape[1]
+    if i == j or not alive_v[i] or not alive_v[j]:
+        return ILLEGAL_TOPOLOGY
+    edge = np.zeros(4, dtype=np.int64)
+    if _edge_faces(state, i, j, edge) != 2:
+        return ILLEGAL_TOPOLOGY  # boundary edges are never swapped
+    # Name the faces so that f1 runs i -> j and f2 runs j -> i.
+    f1, f2 = edge[0], edge[1]
+    c = 0
+    while F[f1, c] != i:
+        c += 1
+    if F[f1, (c + 1) % 3] != j:
+        f1, f2 = f2, f1
+    k, m = _opposite(F, f1, i, j), _opposite(F, f2, i, j)
+    if k == m or deg[k] + 1 > width or deg[m] + 1 > width:
+        return ILLEGAL_TOPOLOGY
+    probe = np.zeros(4, dtype=np.int64)
+    if _edge_faces(state, k, m, probe) > 0:
+        return ILLEGAL_TOPOLOGY  # (k, m) is an edge already
+    ring_i = np.zeros(2 * width, dtype=np.int64)
+    n_i, boundary_i = _neighbours(state, i, ring_i)
+    n_j, boundary_j = _neighbours(state, j, ring_i)
+    # i and j each lose a face: keep an interior vertex with three faces at least.
+    if deg[i] - 1 < (1 if boundary_i else 3) or deg[j] - 1 < (1 if boundary_j else 3):
+        return ILLEGAL_TOPOLOGY
+    new_faces = np.zeros((2, 3), dtype=np.int64)
+    new_faces[0, 0], new_faces[0, 1], new_faces[0, 2] = i, m, k
+    new_faces[1, 0], new_faces[1, 1], new_faces[1, 2] = m, j, k
+    global_face = np.array([f1, f2], dtype=np.int64)
+    pts, old = _gather_points(state, edge, 2)
+    old += kappa * ((V[i, 0] - V[j, 0]) ** 2 + (V[i, 1] - V[j, 1]) ** 2 + (V[i, 2] - V[j, 2]) ** 2)
+    face = np.zeros(pts.shape[0], dtype=np.int64)
+    bary = np.zeros((pts.shape[0], 3))
+    d2 = np.zeros(pts.shape[0])
+    h = np.zeros(3)
+    new = _project_local(state, pts, new_faces, 2, h, face, bary, d2)
+    new += kappa * ((V[k, 0] - V[m, 0]) ** 2 + (V[k, 1] - V[m, 1]) ** 2 + (V[k, 2] - V[m, 2]) ** 2)
+    delta = new - old
+    result[0] = delta
+    result[1] = -1
+    if not force and delta >= 0.0:
+        return ENERGY_INCREASE
+    if not _fold_ok(state, edge, 2, new_faces, 2, h, min_cos):
+        return BAD_DIHEDRAL
+    F[f1, 0], F[f1, 1], F[f1, 2] = i, m, k
+    F[f2, 0], F[f2, 1], F[f2, 2] = m, j, k
+    _remove_face(vf, deg, j, f1)
+    _add_face(vf, deg, m, f1)
+    _remove_face(vf, deg, i, f2)
+    _add_face(vf, deg, k, f2)
+    _reassign(state, pts, global_face, face, bary, d2)
+    return ACCEPTED
+
+
+# ------------------------------------------------------------------ one pass over the edges
+
+
+@jit
+def _push_star(state, v, queue, tail, capacity, head):
+    # Queue every edge of the faces around v, each at a random place among those waiting.
+    F, vf, deg = state[1], state[4], state[5]
+    for k in range(deg[v]):
+        f = vf[v, k]
+        for c in range(3):
+            if tail - head >= capacity:
+                return tail
+            slot = tail % capacity
+            queue[slot, 0], queue[slot, 1] = F[f, c], F[f, (c + 1) % 3]
+            other = head + np.random.randint(0, tail - head + 1)  # noqa: NPY002 (Numba's own)
+            if other != tail:
+                o = other % capacity
+                for a in range(2):
+                    queue[slot, a], queue[o, a] = queue[o, a], queue[slot, a]
+            tail += 1
+    return tail
+
+
+@jit
+def run_pass(state, edges, kappa, c_rep, min_cos, seed, max_attempts, tally):
+    """Try the moves on every edge of `edges` (E, 2), in that order, until none is left.
+
+    For each candidate edge, collapse, then swap, then split are tried (Hoppe 1993, §4.2);
+    after an accepted move the edges around its vertices join the queue at random places.
+    `tally` (3, 4) int64 counts the outcome of each kind of move. Returns the energy
+    change of the accepted moves.
+    """
+    np.random.seed(seed)  # noqa: NPY002 (seeds Numba's generator from the caller's Generator)
+    capacity = max(8 * edges.shape[0], 1024)
+    queue = np.zeros((capacity, 2), dtype=np.int64)
+    n = min(edges.shape[0], capacity)
+    queue[:n] = edges[:n]
+    head, tail = 0, n
+    result = np.zeros(2)
+    probe = np.zeros(4, dtype=np.int64)
+    alive_v = state[2]
+    total = 0.0
+    attempts = 0
+    while head < tail and attempts < max_attempts:
+        slot = head % capacity
+        i, j = queue[slot, 0], queue[slot, 1]
+        head += 1
+        if not alive_v[i] or not alive_v[j] or _edge_faces(state, i, j, probe) == 0:
+            continue  # the edge went with an earlier move
+        attempts += 1
+        outcome = try_collapse(state, i, j, kappa, c_rep, min_cos, False, result)
+        tally[COLLAPSE, outcome] += 1
+        if outcome == ACCEPTED:
+            total += result[0]
+            tail = _push_star(state, i, queue, tail, capacity, head)
+            continue
+        outcome = try_swap(state, i, j, kappa, c_rep, min_cos, False, result)
+        tally[SWAP, outcome] += 1
+        if outcome == ACCEPTED:
+            total += result[0]
+            tail = _push_star(state, i, queue, tail, capacity, head)
+            tail = _push_star(state, j, queue, tail, capacity, head)
+            continue
+        outcome = try_split(state, i, j, kappa, c_rep, min_cos, False, result)
+        tally[SPLIT, outcome] += 1
+        if outcome == ACCEPTED:
+            total += result[0]
+            tail = _push_star(state, int(result[1]), queue, tail, capacity, head)
+    return total

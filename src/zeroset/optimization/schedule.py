@@ -1,0 +1,27 @@
+"""Defaults of the mesh optimisation, relative to the data so that they need no tuning.
+
+Hoppe et al. (1993) give c_rep and kappa in a frame where the data fill the unit cube and
+tune them per model. Here both follow from the data and the starting mesh:
+
+- ``kappa``: the springs (Hoppe 1993, §4.1) are a regulariser whose weight must be measured
+  against the data term, which grows with the points per vertex. The schedule starts at
+  ``KAPPA_START`` times the points per starting vertex, N / M0, and falls by the factors
+  in ``KAPPA_STEPS`` (Hoppe's 1e-2, 1e-3, 1e-4, 1e-8), ending with almost no springs.
+- ``c_rep``: a vertex is kept when it lowers E_dist by more than c_rep. Fitting noise with
+  one more vertex lowers E_dist by about sigma^2 per point it moves, so a c_rep near
+  sigma^2 crumples the mesh into folds. ``C_REP_FACTOR`` times the noise energy of the
+  points per starting vertex, ``(N / M0) * sigma^2``, keeps a vertex only where the shape
+  needs it; sigma is the robust spread of the distances from the points to the starting
+  mesh (1.4826 times their median).
+"""
+
+KAPPA_START = 1e-2
+KAPPA_STEPS = (1.0, 1e-1, 1e-2, 1e-6)
+C_REP_FACTOR = 1.0
+#: Points farther than this many sigma from the starting mesh are left out (outliers).
+MAX_DISTANCE_SIGMAS = 5.0
+#: A move may not fold two neighbouring faces further apart than this (degrees), unless
+#: they were folded as much before.
+MAX_FOLD_DEGREES = 60.0
+#: Passes over the edges per kappa; a level ends earlier when a pass accepts nothing.
+MAX_PASSES = 2

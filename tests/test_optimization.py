@@ -1,0 +1,277 @@
+"""Phase 2, mesh optimisation (Hoppe 1993): energy, moves, and the whole optimisation."""
+
+import numpy as np
+import pytest
+
+from zeroset import InputError, optimize, reconstruct, topology
+from zeroset._kernels import optimize as kernels
+from zeroset.evaluate import closest_points_on_triangles, sample_surface
+from zeroset.optimization import MeshState, MoveOutcome, fit_vertices, project
+from zeroset.synthetic import sample_cylinder, sample_sphere
+from zeroset.types import Mesh
+
+# --------------------------------------------------------------------------- fixtures
+
+
+@pytest.fixture(scope="module")
+def cylinder():
+    """The thesis' open cylinder (sigma 2 mm), its phase-1 mesh and the optimised mesh."""
+    sample = sample_cylinder(10_000, radius=0.25, length=1.0, noise=0.002, rng=7)
+    start = reconstruct(sample.points).mesh
+    return sample, start, optimize(start, sample.points, rng=0)
+
+
+def _grid(n: int = 4) -> Mesh:
+    """A flat n x n grid of squares in z = 0, each split into two triangles, facing +z."""
+    x, y = np.meshgrid(np.arange(n + 1, dtype=float), np.arange(n + 1, dtype=float))
+    vertices = np.column_stack([x.ravel(), y.ravel(), np.zeros(x.size)])
+    faces = []
+    for r in range(n):
+        for c in range(n):
+            a, b = r * (n + 1) + c, r * (n + 1) + c + 1
+            d, e = a + n + 1, b + n + 1
+            faces += [[a, b, e], [a, e, d]]
+    return Mesh(vertices=vertices, faces=np.array(faces))
+
+
+def _octahedron() -> Mesh:
+    vertices = np.array(
+        [[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], dtype=float
+    )
+    faces = np.array(
+        [[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4], [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]]
+    )
+    return Mesh(vertices=vertices, faces=faces)
+
+
+def _prism_tube(sides: int = 3) -> Mesh:
+    """An open tube with a polygonal cross-section: two rings of `sides` vertices."""
+    angles = 2 * np.pi * np.arange(sides) / sides
+    ring = np.column_stack([np.cos(angles), np.sin(angles)])
+    vertices = np.vstack(
+        [np.column_stack([ring, np.zeros(sides)]), np.column_stack([ring, np.ones(sides)])]
+    )
+    faces = []
+    for t in range(sides):
+        a, b = t, (t + 1) % sides
+        faces += [[a, b, b + sides], [a, b + sides, a + sides]]
+    return Mesh(vertices=vertices, faces=np.array(faces))
+
+
+def _hexagonal_tube() -> Mesh:
+    return _prism_tube(6)
+
+
+def _state(mesh: Mesh, rng, **options) -> MeshState:
+    """The mesh with points sampled on it, slightly off its surface."""
+    points, normals = sample_surface(mesh, 400, rng=rng)
+    points = points + 0.01 * rng.normal(size=(points.shape[0], 1)) * normals
+    projection = project(points, mesh.vertices, mesh.faces)
+    return MeshState(
+        mesh.vertices, mesh.faces, points, projection, **({"kappa": 1e-3, "c_rep": 0.0} | options)
+    )
+
+
+def _check_valid(mesh: Mesh, loops: int, euler: int) -> None:
+    assert topology.is_edge_manifold(mesh.faces)
+    assert topology.is_consistently_oriented(mesh.faces)
+    assert len(topology.boundary_loops(mesh.faces)) == loops
+    assert topology.euler_characteristic(mesh) == euler
+    assert np.unique(mesh.faces).size == mesh.n_vertices  # no vertex left without a face
+
+
+def _fold_cosines(mesh: Mesh) -> np.ndarray:
+    """Cosine between the normals of the two faces of every interior edge."""
+    pairs = topology.edge_face_pairs(mesh.faces)
+    return topology.fold_cosines(mesh.vertices, mesh.faces, pairs)
+
+
+# --------------------------------------------------------------------------- projection
+
+
+def test_projection_kernel_matches_the_numpy_closest_point(rng):
+    corners = rng.normal(size=(500, 3, 3)) * 10.0 ** rng.uniform(-2, 1, size=(500, 1, 1))
+    corners[-1, 2] = corners[-1, 0] + 1e-14  # nearly degenerate
+    points = rng.normal(size=(500, 3)) * 2
+    a, b, c = (np.ascontiguousarray(corners[:, k]) for k in range(3))
+    distance2, bary = np.zeros(500), np.zeros((500, 3))
+    kernels.project_rows(points, a, b, c, distance2, bary)
+    expected = closest_points_on_triangles(points, a, b, c)
+    foot = bary[:, :1] * a + bary[:, 1:2] * b + bary[:, 2:] * c
+    np.testing.assert_allclose(foot, expected, atol=1e-9)
+    np.testing.assert_allclose(distance2, np.sum((points - expected) ** 2, axis=1), atol=1e-9)
+    assert np.all(bary >= -1e-12) and np.allclose(bary.sum(axis=1), 1.0)
+
+
+def test_fit_lowers_the_energy_and_pulls_the_mesh_onto_the_points(rng):
+    mesh = _grid(4)
+    points, _ = sample_surface(mesh, 2000, rng=rng)
+    points[:, 2] = 0.3  # the data lie 0.3 above the grid
+    edges = topology.edge_face_counts(mesh.faces)[0]
+    before = project(points, mesh.vertices, mesh.faces).distance2.sum()
+    vertices, projection, kept = fit_vertices(points, mesh.vertices, mesh.faces, edges, kappa=1e-6)
+    assert kept >= 1
+    assert projection.distance2.sum() < 1e-3 * before
+    np.testing.assert_allclose(vertices[:, 2], 0.3, atol=1e-3)
+
+
+# --------------------------------------------------------------------------- single moves
+
+
+def test_collapse_is_refused_where_the_link_condition_fails(rng):
+    # Ring edge (0, 1) of the tube: vertex 2 neighbours both ends but no face holds all three.
+    state = _state(_prism_tube(), rng)
+    assert state.try_collapse(0, 1, force=True) is MoveOutcome.ILLEGAL_TOPOLOGY
+    _check_valid(state.to_mesh(), loops=2, euler=0)
+
+
+def test_collapse_of_an_interior_edge_between_two_boundary_vertices_is_refused(rng):
+    # The diagonal (0, 3) of a single square: both ends on the boundary, the edge inside.
+    state = _state(_grid(1), rng)
+    assert state.try_collapse(0, 3, force=True) is MoveOutcome.ILLEGAL_TOPOLOGY
+
+
+def test_a_legal_collapse_keeps_the_mesh_valid(rng):
+    mesh = _grid(4)
+    state = _state(mesh, rng)
+    # An interior edge between two interior vertices (6, 7 are inside the 5 x 5 grid).
+    assert state.try_collapse(6, 7, force=True) is MoveOutcome.ACCEPTED
+    after = state.to_mesh()
+    assert after.n_vertices == mesh.n_vertices - 1 and after.n_faces == mesh.n_faces - 2
+    _check_valid(after, loops=1, euler=1)
+
+
+def test_swap_is_refused_on_a_boundary_edge_and_made_on_an_interior_one(rng):
+    state = _state(_grid(2), rng)
+    assert state.try_swap(0, 1, force=True) is MoveOutcome.ILLEGAL_TOPOLOGY
+    assert state.try_swap(0, 4, force=True) is MoveOutcome.ACCEPTED  # a square's diagonal
+    after = state.to_mesh()
+    _check_valid(after, loops=1, euler=1)
+    edges = {tuple(e) for e in topology.edge_face_counts(after.faces)[0].tolist()}
+    assert (0, 4) not in edges and (1, 3) in edges
+
+
+def test_swap_onto_an_existing_edge_is_refused(rng):
+    # In a tetrahedron the other diagonal of any two faces is already an edge.
+    vertices = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], dtype=float)
+    faces = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
+    state = _state(Mesh(vertices=vertices, faces=faces), rng)
+    assert state.try_swap(0, 1, force=True) is MoveOutcome.ILLEGAL_TOPOLOGY
+
+
+@pytest.mark.parametrize(
+    "make, loops, euler", [(_grid, 1, 1), (_octahedron, 0, 2), (_hexagonal_tube, 2, 0)]
+)
+def test_splitting_every_edge_keeps_the_mesh_valid(make, loops, euler, rng):
+    mesh = make()
+    edges = topology.edge_face_counts(mesh.faces)[0]
+    state = _state(mesh, rng, spare=len(edges) / mesh.n_vertices)
+    for a, b in edges:
+        assert state.try_split(a, b, force=True) is MoveOutcome.ACCEPTED
+    after = state.to_mesh()
+    assert after.n_vertices == mesh.n_vertices + len(edges)
+    _check_valid(after, loops=loops, euler=euler)
+
+
+def test_collapses_never_fold_a_face_and_folding_ones_are_refused():
+    # Flat fans around vertex 0 with random ring radii: collapsing the centre into a ring
+    # vertex folds faces over wherever the ring is not star-shaped from that vertex.
+    outcomes = []
+    for seed in range(40):
+        rng = np.random.default_rng(seed)
+        gaps = rng.uniform(0.3, 1.0, 7)  # every face turns less than half a circle
+        angles = np.cumsum(gaps) * 2 * np.pi / gaps.sum()
+        radii = rng.uniform(0.2, 2.0, 7)
+        ring = np.column_stack([radii * np.cos(angles), radii * np.sin(angles), np.zeros(7)])
+        vertices = np.vstack([[0.0, 0.0, 0.0], ring])
+        faces = np.array([[0, 1 + t, 1 + (t + 1) % 7] for t in range(7)])
+        state = _state(Mesh(vertices=vertices, faces=faces), rng)
+        outcome = state.try_collapse(1, 0, force=True)
+        outcomes.append(outcome)
+        if outcome is MoveOutcome.ACCEPTED:
+            assert np.all(_fold_cosines(state.to_mesh()) > 0.0)
+    assert MoveOutcome.BAD_DIHEDRAL in outcomes
+    assert MoveOutcome.ACCEPTED in outcomes
+
+
+# --------------------------------------------------------------------------- optimisation
+
+
+def test_energy_never_increases(cylinder):
+    _, _, result = cylinder
+    totals = np.array([entry["total"] for entry in result.history])
+    assert totals.size > 4
+    assert np.all(np.diff(totals) <= 1e-12 * totals[0])
+    assert result.energy.total < result.energy_before.total
+
+
+def test_open_cylinder_gets_five_times_fewer_triangles_and_stays_as_close(cylinder):
+    sample, start, result = cylinder
+    mesh = result.mesh
+    assert mesh.n_faces * 5 <= start.n_faces
+    before = np.abs(sample.distance(sample_surface(start, 50_000, rng=0)[0])).mean()
+    after = np.abs(sample.distance(sample_surface(mesh, 50_000, rng=0)[0])).mean()
+    assert after <= 1.1 * before
+    assert len(topology.boundary_loops(mesh.faces)) == 2
+    assert topology.is_edge_manifold(mesh.faces)
+    assert topology.is_consistently_oriented(mesh.faces)
+    assert np.all(_fold_cosines(mesh) > 0.0)  # no neighbouring faces opposed
+
+
+def test_the_run_reports_moves_parameters_and_energy_terms(cylinder):
+    _, start, result = cylinder
+    assert set(result.moves) == {"collapse", "split", "swap"}
+    assert result.moves["collapse"]["accepted"] > 0
+    assert result.parameters["c_rep"] > 0 and len(result.parameters["kappa"]) == 4
+    assert np.all(np.diff(result.parameters["kappa"]) < 0)
+    assert result.stats["faces"] == result.mesh.n_faces
+    assert result.stats["faces_before"] == start.n_faces
+    for energy in (result.energy_before, result.energy):
+        assert energy.total == pytest.approx(
+            energy.distance + energy.representation + energy.spring
+        )
+
+
+def test_closed_sphere_stays_closed_with_the_same_genus():
+    sample = sample_sphere(4000, noise=0.01, rng=3)
+    start = reconstruct(sample.points).mesh
+    mesh = optimize(start, sample.points, rng=0).mesh
+    assert mesh.n_faces < start.n_faces
+    _check_valid(mesh, loops=0, euler=2)
+    assert topology.signed_volume(mesh) > 0
+    assert np.abs(sample.distance(mesh.vertices)).max() < 0.05
+
+
+def test_same_seed_same_mesh(cylinder):
+    sample, start, result = cylinder
+    again = optimize(start, sample.points, rng=0).mesh
+    np.testing.assert_array_equal(again.faces, result.mesh.faces)
+    np.testing.assert_array_equal(again.vertices, result.mesh.vertices)
+
+
+def test_optimisation_is_scale_free(cylinder):
+    # The same cloud in millimetres gives the same mesh, a thousand times larger.
+    sample, start, result = cylinder
+    scaled = Mesh(vertices=1000.0 * start.vertices, faces=start.faces)
+    mesh = optimize(scaled, 1000.0 * sample.points, rng=0).mesh
+    assert mesh.n_faces == result.mesh.n_faces
+    # Equal up to rounding carried through the iterations: 1 um on a 1.2 m pipe.
+    np.testing.assert_allclose(mesh.vertices, 1000.0 * result.mesh.vertices, atol=1e-3)
+
+
+def test_bad_input_is_refused(tetra_mesh):
+    points = np.random.default_rng(0).normal(size=(50, 3))
+    with pytest.raises(InputError, match="no faces"):
+        optimize(Mesh(vertices=np.eye(3), faces=np.zeros((0, 3), int)), points)
+    fin = Mesh(
+        vertices=np.vstack([tetra_mesh.vertices, [[1, 1, 1]]]),
+        faces=np.vstack([tetra_mesh.faces, [[1, 2, 4]]]),
+    )
+    with pytest.raises(InputError, match="edge-manifold"):
+        optimize(fin, points)
+    with pytest.raises(InputError, match=r"shape \(N, 3\)"):
+        optimize(tetra_mesh, points[:, :2])
+    with pytest.raises(InputError, match="c_rep"):
+        optimize(tetra_mesh, points, c_rep=-1.0)
+    with pytest.raises(TypeError, match="Mesh"):
+        optimize((tetra_mesh.vertices, tetra_mesh.faces), points)
