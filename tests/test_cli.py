@@ -201,3 +201,62 @@ def test_evaluate_reports_reference_points_and_quality(tmp_path, capsys):
 def test_evaluate_missing_mesh_exits_2(tmp_path, capsys):
     assert main(["evaluate", str(tmp_path / "nothing.ply")]) == 2
     assert "no such file" in capsys.readouterr().err
+
+
+def test_reconstruct_with_optimize_runs_phase_two_on_every_point(sphere_file, tmp_path, capsys):
+    out, report_path = tmp_path / "mesh.ply", tmp_path / "r.json"
+    code = main(
+        ["reconstruct", str(sphere_file), "-o", str(out), "--optimize", "--sample", "0.5"]
+        + ["--report", str(report_path)]
+    )
+    assert code == 0
+    mesh = io.read_mesh(out)
+    report = json.loads(report_path.read_text())
+    phase2 = report["optimization"]
+    assert phase2["stats"]["faces"] == mesh.n_faces < phase2["stats"]["faces_before"]
+    # Phase 1 saw half the points, phase 2 all of them but its outliers.
+    used = phase2["stats"]["points_used"] + phase2["stats"]["points_ignored"]
+    assert used == 4000 and report["stats"]["sampled_out"] == 2000
+    assert phase2["energy"]["total"] < phase2["energy_before"]["total"]
+    assert topology.euler_characteristic(mesh) == 2
+    assert "optimize" in report["timings"]
+    assert "moves accepted" in capsys.readouterr().out
+
+
+def test_optimize_command_writes_a_smaller_mesh_and_a_report(sphere_file, tmp_path, capsys):
+    start = tmp_path / "start.ply"
+    assert main(["reconstruct", str(sphere_file), "-o", str(start), "--quiet"]) == 0
+    out, report_path = tmp_path / "fine.off", tmp_path / "o.json"
+    code = main(
+        ["optimize", str(start), str(sphere_file), "-o", str(out), "--report", str(report_path)]
+        + ["--c-rep", "1e-4", "--seed", "2"]
+    )
+    assert code == 0
+    before, after = io.read_mesh(start), io.read_mesh(out)
+    assert after.n_faces < before.n_faces
+    assert topology.euler_characteristic(after) == 2
+    report = json.loads(report_path.read_text())
+    assert report["parameters"]["c_rep"] == 1e-4
+    assert report["files"]["mesh"] == str(start)
+    totals = [entry["total"] for entry in report["history"]]
+    assert all(b <= a for a, b in zip(totals, totals[1:], strict=False))
+    assert "phase 2" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize(
+    "argv, message",
+    [
+        (["optimize", "{mesh}", "{points}", "-o", "{tmp}/out.xyz"], "unknown mesh format"),
+        (["optimize", "{mesh}", "{points}", "-o", "{tmp}/no/out.ply"], "does not exist"),
+        (["optimize", "{tmp}/missing.ply", "{points}", "-o", "{tmp}/out.ply"], "missing.ply"),
+        (["optimize", "{mesh}", "{points}", "-o", "{tmp}/o.ply", "--c-rep", "-1"], "c_rep"),
+    ],
+)
+def test_optimize_command_errors(argv, message, sphere_file, tmp_path, capsys):
+    mesh = tmp_path / "start.ply"
+    assert main(["reconstruct", str(sphere_file), "-o", str(mesh), "--quiet"]) == 0
+    capsys.readouterr()
+    filled = [a.format(mesh=mesh, points=sphere_file, tmp=tmp_path) for a in argv]
+    assert main(filled) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("zeroset: error:") and message in err and len(err.splitlines()) == 1

@@ -379,9 +379,12 @@ def _gather_points(state, region, n_region):
 
 
 @jit
-def _project_local(state, pts, new_faces, n_new, h, best_face, best_bary, best_d2):
+def _project_local(state, pts, new_faces, n_new, near, h, best_face, best_bary, best_d2):
     # Project every point in pts onto the nearest candidate face; returns the energy.
-    # A face is skipped when its bounding sphere is no nearer than the best face so far.
+    # best_face holds a first guess per point (-1: none). A point with a guess g is
+    # projected onto the faces t with near[g, t] only, g first, so that every other face
+    # whose bounding sphere is no nearer is skipped. Fewer faces can only over-estimate
+    # a distance.
     V, X = state[0], state[6]
     corners = np.zeros((n_new, 9))
     sphere = np.zeros((n_new, 4))
@@ -403,7 +406,16 @@ def _project_local(state, pts, new_faces, n_new, h, best_face, best_bary, best_d
         p = pts[q]
         px, py, pz = X[p, 0], X[p, 1], X[p, 2]
         best = np.inf
+        guess = best_face[q]
+        if guess >= 0:
+            k = corners[guess]
+            best, u, v, w = project_to_triangle(
+                px, py, pz, k[0], k[1], k[2], k[3], k[4], k[5], k[6], k[7], k[8]
+            )
+            best_bary[q, 0], best_bary[q, 1], best_bary[q, 2] = u, v, w
         for t in range(n_new):
+            if t == guess or (guess >= 0 and not near[guess, t]):
+                continue
             gap = (
                 np.sqrt(
                     (px - sphere[t, 0]) ** 2 + (py - sphere[t, 1]) ** 2 + (pz - sphere[t, 2]) ** 2
@@ -426,6 +438,32 @@ def _project_local(state, pts, new_faces, n_new, h, best_face, best_bary, best_d
 
 
 @jit
+def _adjacent(new_faces, n_new):
+    # near[t, s]: candidate faces t and s are one face or share an edge.
+    near = np.zeros((n_new, n_new), dtype=np.bool_)
+    for t in range(n_new):
+        for s in range(n_new):
+            shared = 0
+            for c in range(3):
+                shared += _has(new_faces[s], 3, new_faces[t, c])
+            near[t, s] = shared >= 2
+    return near
+
+
+@jit
+def _guesses(state, pts, global_face, n_new):
+    # For each point, the candidate face that replaces the face it lies on now (-1: none).
+    pf = state[7]
+    face = np.full(pts.shape[0], -1, dtype=np.int64)
+    for q in range(pts.shape[0]):
+        for t in range(n_new):
+            if global_face[t] == pf[pts[q]]:
+                face[q] = t
+                break
+    return face
+
+
+@jit
 def _spring(V, h, ring, n_ring):
     # Sum of squared lengths of the edges from h to the ring vertices.
     total = 0.0
@@ -436,14 +474,18 @@ def _spring(V, h, ring, n_ring):
 
 
 @jit
-def _fit_vertex(state, pts, new_faces, n_new, ring, n_ring, kappa, start, face, bary, d2):
+def _fit_vertex(
+    state, pts, new_faces, n_new, near, ring, n_ring, kappa, start, target, face, bary, d2
+):
     # Optimise the new vertex from `start`: alternate projecting the points onto the
     # candidate faces and the least-squares position of the one free vertex (Hoppe 1993,
     # §4.3): min_h sum_p |x_p - sum_c b_pc v_c|^2 + kappa sum_ring |h - v_u|^2.
+    # Stops early once the energy is so far above `target` (what the move must beat) that
+    # more alternations, each gaining less than the last, cannot reach it.
     # Returns the local energy (distances plus springs) and the position, in h.
     V, X = state[0], state[6]
     h = start.copy()
-    energy = _project_local(state, pts, new_faces, n_new, h, face, bary, d2)
+    energy = _project_local(state, pts, new_faces, n_new, near, h, face, bary, d2)
     energy += kappa * _spring(V, h, ring, n_ring)
     for _ in range(_LOCAL_ITERATIONS):
         weight = kappa * n_ring
@@ -475,29 +517,37 @@ def _fit_vertex(state, pts, new_faces, n_new, ring, n_ring, kappa, start, face, 
         trial_bary = bary.copy()
         trial_d2 = d2.copy()
         trial_energy = _project_local(
-            state, pts, new_faces, n_new, trial, trial_face, trial_bary, trial_d2
+            state, pts, new_faces, n_new, near, trial, trial_face, trial_bary, trial_d2
         )
         trial_energy += kappa * _spring(V, trial, ring, n_ring)
         if trial_energy >= energy:
             break
+        gain = energy - trial_energy
         h, energy = trial, trial_energy
         face[:] = trial_face
         bary[:] = trial_bary
         d2[:] = trial_d2
+        if energy - target > 2.0 * gain:
+            break
     return energy, h
 
 
 @jit
-def _best_fit(state, pts, new_faces, n_new, ring, n_ring, kappa, starts, face, bary, d2):
+def _best_fit(
+    state, pts, new_faces, n_new, near, ring, n_ring, kappa, starts, target, face, bary, d2
+):
     # _fit_vertex from each row of `starts`; keeps the lowest energy.
     best_energy, best_h = np.inf, starts[0].copy()
+    guesses = face.copy()
     f_try = np.zeros_like(face)
     b_try = np.zeros_like(bary)
     d_try = np.zeros_like(d2)
     for s in range(starts.shape[0]):
+        f_try[:] = guesses
         energy, h = _fit_vertex(
-            state, pts, new_faces, n_new, ring, n_ring, kappa, starts[s], f_try, b_try, d_try
-        )
+            state, pts, new_faces, n_new, near, ring, n_ring, kappa, starts[s], target,
+            f_try, b_try, d_try,
+        )  # fmt: skip
         if energy < best_energy:
             best_energy, best_h = energy, h
             face[:] = f_try
@@ -640,10 +690,14 @@ def try_collapse(state, i, j, kappa, c_rep, min_cos, force, result):
         starts[0] = V[j]
     else:
         starts[0] = 0.5 * (V[i] + V[j])
-    face = np.zeros(pts.shape[0], dtype=np.int64)
+    face = _guesses(state, pts, global_face, n_new)
     bary = np.zeros((pts.shape[0], 3))
     d2 = np.zeros(pts.shape[0])
-    new, h = _best_fit(state, pts, new_faces, n_new, ring, n_ring, kappa, starts, face, bary, d2)
+    near = _adjacent(new_faces, n_new)
+    new, h = _best_fit(
+        state, pts, new_faces, n_new, near, ring, n_ring, kappa, starts, old + c_rep,
+        face, bary, d2,
+    )  # fmt: skip
     delta = new - old - c_rep
     result[0] = delta
     result[1] = i
@@ -716,12 +770,14 @@ def try_split(state, i, j, kappa, c_rep, min_cos, force, result):
         return ENERGY_INCREASE
     starts = np.zeros((1, 3))
     starts[0] = 0.5 * (V[i] + V[j])
-    face = np.zeros(pts.shape[0], dtype=np.int64)
+    face = _guesses(state, pts, global_face, 2 * n_edge)
     bary = np.zeros((pts.shape[0], 3))
     d2 = np.zeros(pts.shape[0])
+    near = np.ones((2 * n_edge, 2 * n_edge), dtype=np.bool_)
     new, h = _best_fit(
-        state, pts, new_faces, 2 * n_edge, ring, 2 + n_edge, kappa, starts, face, bary, d2
-    )
+        state, pts, new_faces, 2 * n_edge, near, ring, 2 + n_edge, kappa, starts, old - c_rep,
+        face, bary, d2,
+    )  # fmt: skip
     delta = new - old + c_rep
     result[0] = delta
     result[1] = sizes[0]
@@ -790,11 +846,13 @@ def try_swap(state, i, j, kappa, c_rep, min_cos, force, result):
     global_face = np.array([f1, f2], dtype=np.int64)
     pts, old = _gather_points(state, edge, 2)
     old += kappa * ((V[i, 0] - V[j, 0]) ** 2 + (V[i, 1] - V[j, 1]) ** 2 + (V[i, 2] - V[j, 2]) ** 2)
-    face = np.zeros(pts.shape[0], dtype=np.int64)
+    face = _guesses(state, pts, global_face, 2)
     bary = np.zeros((pts.shape[0], 3))
     d2 = np.zeros(pts.shape[0])
     h = np.zeros(3)
-    new = _project_local(state, pts, new_faces, 2, h, face, bary, d2)
+    new = _project_local(
+        state, pts, new_faces, 2, np.ones((2, 2), dtype=np.bool_), h, face, bary, d2
+    )
     new += kappa * ((V[k, 0] - V[m, 0]) ** 2 + (V[k, 1] - V[m, 1]) ** 2 + (V[k, 2] - V[m, 2]) ** 2)
     delta = new - old
     result[0] = delta
