@@ -6,7 +6,9 @@ import pytest
 from tests import reference
 from zeroset._kernels import evaluate as evaluate_kernels
 from zeroset._kernels import normals as normals_kernels
+from zeroset._kernels import optimize as optimize_kernels
 from zeroset._kernels import orientation as orientation_kernels
+from zeroset.evaluate import closest_points_on_triangles
 from zeroset.neighbours import knn
 
 
@@ -83,3 +85,18 @@ def test_component_extremes_finds_the_farthest_point_per_direction():
         for axis in range(3):
             assert extremes[c, 2 * axis] == members[np.argmax(points[members, axis])]
             assert extremes[c, 2 * axis + 1] == members[np.argmin(points[members, axis])]
+
+
+def test_projection_with_barycentrics_matches_the_numpy_closest_point():
+    rng = np.random.default_rng(4)
+    corners = rng.normal(size=(500, 3, 3)) * 10.0 ** rng.uniform(-2, 1, size=(500, 1, 1))
+    corners[-1, 2] = corners[-1, 0] + 1e-14  # nearly degenerate
+    points = rng.normal(size=(500, 3)) * 2
+    a, b, c = (np.ascontiguousarray(corners[:, k]) for k in range(3))
+    distance2, bary = np.zeros(500), np.zeros((500, 3))
+    optimize_kernels.project_rows(points, a, b, c, distance2, bary)
+    expected = closest_points_on_triangles(points, a, b, c)
+    foot = bary[:, :1] * a + bary[:, 1:2] * b + bary[:, 2:] * c
+    np.testing.assert_allclose(foot, expected, atol=1e-9)
+    np.testing.assert_allclose(distance2, np.sum((points - expected) ** 2, axis=1), atol=1e-9)
+    assert np.all(bary >= -1e-12) and np.allclose(bary.sum(axis=1), 1.0)
