@@ -46,6 +46,7 @@ from pathlib import Path
 
 import numpy as np
 from _docfile import markers, replace_section, write_atomic
+from bench_phase1 import machine_lines
 
 ROOT = Path(__file__).resolve().parents[1]
 DEFAULT_OUTPUT = ROOT / "docs" / "benchmarks.md"
@@ -1046,15 +1047,10 @@ def render(results: dict, summary: str | None) -> str:
         command,
         "```",
         "",
-        "### Machine",
-        "",
-        f"- Date: {machine['date']}",
-        f"- CPU: {machine['cpu']}; `os.cpu_count()` = {machine['cpu_count']}, usable = "
-        f"{machine['usable_cpus']}, Numba threads = {machine['numba_threads']}",
-        f"- Platform: {machine['platform']}",
-        f"- Python {machine['python']}, NumPy {machine['numpy']}, SciPy {machine['scipy']}, "
-        f"Numba {machine['numba']}, zeroset {machine['zeroset']}, Open3D {machine['open3d']}, "
-        f"PyMeshLab {machine['pymeshlab']}, VTK {machine['vtk']}",
+        *machine_lines(
+            machine,
+            f", Open3D {machine['open3d']}, PyMeshLab {machine['pymeshlab']}, VTK {machine['vtk']}",
+        ),
         f"- zeroset source: commit {machine.get('commit', 'unknown')}",
         "",
         "### Summary",

@@ -124,6 +124,20 @@ def summarise(report: dict) -> dict:
     }
 
 
+def machine_lines(machine: dict, extra: str = "") -> list[str]:
+    """The "Machine" subsection of a report from `machine_info()`; `extra` ends the versions."""
+    return [
+        "### Machine",
+        "",
+        f"- Date: {machine['date']}",
+        f"- CPU: {machine['cpu']}; `os.cpu_count()` = {machine['cpu_count']}, "
+        f"usable = {machine['usable_cpus']}, Numba threads = {machine['numba_threads']}",
+        f"- Platform: {machine['platform']}",
+        f"- Python {machine['python']}, NumPy {machine['numpy']}, SciPy {machine['scipy']}, "
+        f"Numba {machine['numba']}, zeroset {machine['zeroset']}{extra}",
+    ]
+
+
 def machine_info() -> dict:
     import numba
     import numpy
@@ -191,14 +205,7 @@ def render(reports: list[dict], machine: dict, command: str, repeat: int) -> str
         command,
         "```",
         "",
-        "### Machine",
-        "",
-        f"- Date: {machine['date']}",
-        f"- CPU: {machine['cpu']}; `os.cpu_count()` = {machine['cpu_count']}, "
-        f"usable = {machine['usable_cpus']}, Numba threads = {machine['numba_threads']}",
-        f"- Platform: {machine['platform']}",
-        f"- Python {machine['python']}, NumPy {machine['numpy']}, SciPy {machine['scipy']}, "
-        f"Numba {machine['numba']}, zeroset {machine['zeroset']}",
+        *machine_lines(machine),
         "",
         "### Summary",
         "",

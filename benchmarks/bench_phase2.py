@@ -29,7 +29,14 @@ from pathlib import Path
 
 from _docfile import replace_section
 from bench_peers import _peak_rss_mib
-from bench_phase1 import CYLINDER, DEFAULT_OUTPUT, TARGET_CORES, WARMUP_POINTS, machine_info
+from bench_phase1 import (
+    CYLINDER,
+    DEFAULT_OUTPUT,
+    TARGET_CORES,
+    WARMUP_POINTS,
+    machine_info,
+    machine_lines,
+)
 
 # name: (points, phase-1 cube_size, target seconds). The cube sizes were measured on this pipe:
 # 0.0201 gives a 10,046-face phase-1 mesh from 100k points, 0.0070 one of 98,163 faces from 1M.
@@ -178,14 +185,7 @@ def render(reports: list[dict], machine: dict, command: str, scale: float) -> st
         command,
         "```",
         "",
-        "### Machine",
-        "",
-        f"- Date: {machine['date']}",
-        f"- CPU: {machine['cpu']}; `os.cpu_count()` = {machine['cpu_count']}, "
-        f"usable = {machine['usable_cpus']}, Numba threads = {machine['numba_threads']}",
-        f"- Platform: {machine['platform']}",
-        f"- Python {machine['python']}, NumPy {machine['numpy']}, SciPy {machine['scipy']}, "
-        f"Numba {machine['numba']}, zeroset {machine['zeroset']}",
+        *machine_lines(machine),
         "",
         "### Summary",
         "",

@@ -336,26 +336,12 @@ def _worst_fold(state, region, n_region, new_faces, n_new, h, min_cos):
 
 @jit
 def _region_fold(state, region, n_region, min_cos):
-    # The same as _worst_fold over the edges of the region faces, before the move.
-    V, F, vf, deg = state[0], state[1], state[4], state[5]
-    h = np.zeros(3)
-    worst = 1.0
-    bad = 0
+    # The same as _worst_fold over the region faces themselves, before the move.
+    F = state[1]
+    faces = np.zeros((n_region, 3), dtype=np.int64)
     for r in range(n_region):
-        f = region[r]
-        nx, ny, nz, ok = _normal(V, h, F[f, 0], F[f, 1], F[f, 2])
-        if not ok:
-            return -2.0, 3 * n_region
-        for c in range(3):
-            a, b = F[f, c], F[f, (c + 1) % 3]
-            for k in range(deg[a]):
-                g = vf[a, k]
-                if g != f and _contains(F, g, b):
-                    mx, my, mz, _ = _normal(V, h, F[g, 0], F[g, 1], F[g, 2])
-                    cos = nx * mx + ny * my + nz * mz
-                    worst = min(worst, cos)
-                    bad += cos < min_cos
-    return worst, bad
+        faces[r] = F[region[r]]
+    return _worst_fold(state, region, n_region, faces, n_region, np.zeros(3), min_cos)
 
 
 @jit
