@@ -200,7 +200,17 @@ def optimize_mesh(
         for name, level in zip(names, kappas, strict=True):
             with stages.stage(name):
                 v, faces, projection = _optimise_level(
-                    x, v, faces, projection, level, c_rep, max_fold_degrees, rng, tally, history
+                    x,
+                    v,
+                    faces,
+                    projection,
+                    level,
+                    c_rep,
+                    max_fold_degrees,
+                    sigma,
+                    rng,
+                    tally,
+                    history,
                 )
     finally:
         stages.close()
@@ -236,18 +246,24 @@ def optimize_mesh(
     )
 
 
-def _optimise_level(x, v, faces, projection, kappa, c_rep, max_fold, rng, tally, history):
-    """Fit, then passes of moves each followed by a fit, until a pass accepts nothing."""
+def _optimise_level(x, v, faces, projection, kappa, c_rep, max_fold, sigma, rng, tally, history):
+    """Fit, then passes of moves each followed by a fit, until a pass accepts nothing.
+
+    The first pass tries every edge; a later one the edges of the vertices that the fit
+    before it moved by more than ``schedule.MOVED_SIGMAS`` x sigma (the others would be
+    evaluated as they were).
+    """
     min_cos = float(np.cos(np.radians(max_fold)))
     v, projection, _ = fit_vertices(
         x, v, faces, _edges(faces), kappa=kappa, projection=projection, min_cos=min_cos
     )
     history.append(_entry("fit", kappa, _energy(v, faces, projection, kappa, c_rep), v, faces))
+    candidates = None
     for _ in range(schedule.MAX_PASSES):
         state = MeshState(
             v, faces, x, projection, kappa=kappa, c_rep=c_rep, max_fold_degrees=max_fold
         )
-        _, counts = state.run_pass(rng, max_attempts=20 * 3 * faces.shape[0] + 1000)
+        _, counts = state.run_pass(rng, 20 * 3 * faces.shape[0] + 1000, candidates)
         tally += counts
         moved = state.to_mesh()
         v, faces = moved.vertices, moved.faces
@@ -255,11 +271,15 @@ def _optimise_level(x, v, faces, projection, kappa, c_rep, max_fold, rng, tally,
         history.append(
             _entry("moves", kappa, _energy(v, faces, projection, kappa, c_rep), v, faces)
         )
-        v, projection, _ = fit_vertices(
-            x, v, faces, _edges(faces), kappa=kappa, projection=projection, min_cos=min_cos
+        edges = _edges(faces)
+        fitted, projection, _ = fit_vertices(
+            x, v, faces, edges, kappa=kappa, projection=projection, min_cos=min_cos
         )
+        moved = np.linalg.norm(fitted - v, axis=1) > schedule.MOVED_SIGMAS * sigma
+        v = fitted
         history.append(_entry("fit", kappa, _energy(v, faces, projection, kappa, c_rep), v, faces))
-        if counts[:, MoveOutcome.ACCEPTED].sum() == 0:
+        candidates = edges[moved[edges].any(axis=1)]
+        if counts[:, MoveOutcome.ACCEPTED].sum() == 0 or candidates.shape[0] == 0:
             break
     return v, faces, projection
 

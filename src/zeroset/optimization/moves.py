@@ -101,14 +101,19 @@ class MeshState:
         """Replace interior edge (i, j) by the other diagonal of its two faces."""
         return self._try(_kernels.try_swap, i, j, force)
 
-    def run_pass(self, rng: np.random.Generator, max_attempts: int) -> tuple[float, np.ndarray]:
-        """Try collapse, swap and split on every edge in random order until none is left.
+    def run_pass(
+        self, rng: np.random.Generator, max_attempts: int, edges: np.ndarray | None = None
+    ) -> tuple[float, np.ndarray]:
+        """Try collapse, swap and split on the edges in random order until none is left.
 
-        Returns the energy change of the accepted moves and the (3, 4) tally of outcomes,
-        rows in the order of ``MOVES``, columns the values of :class:`MoveOutcome`.
+        `edges` (E, 2) are the candidates to start from (default: every edge); the edges
+        around each accepted move join them. Returns the energy change of the accepted moves
+        and the (3, 4) tally of outcomes, rows in the order of ``MOVES``, columns the values
+        of :class:`MoveOutcome`.
         """
-        edges = np.unique(_kernels.edges_of(self._state), axis=0)
-        edges = edges[rng.permutation(edges.shape[0])]
+        if edges is None:
+            edges = np.unique(_kernels.edges_of(self._state), axis=0)
+        edges = np.ascontiguousarray(edges[rng.permutation(edges.shape[0])], dtype=np.int64)
         tally = np.zeros((3, 4), dtype=np.int64)
         seed = int(rng.integers(0, 2**31 - 1))
         delta = _kernels.run_pass(

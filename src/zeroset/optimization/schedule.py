@@ -23,5 +23,7 @@ MAX_DISTANCE_SIGMAS = 5.0
 #: A move may not fold two neighbouring faces further apart than this (degrees), unless
 #: they were folded as much before.
 MAX_FOLD_DEGREES = 60.0
-#: Passes over the edges per kappa; a level ends earlier when a pass accepts nothing.
-MAX_PASSES = 2
+#: Passes per kappa; a level ends earlier when a pass accepts nothing or the fit after it
+#: moves no vertex by more than MOVED_SIGMAS x sigma.
+MAX_PASSES = 4
+MOVED_SIGMAS = 0.1
