@@ -134,7 +134,7 @@ def closest_points_on_mesh(points, mesh: Mesh) -> tuple[np.ndarray, np.ndarray, 
     """
     points = as_points(points)
     vertices, faces = _as_mesh(mesh)
-    return _closest(points, vertices, faces)
+    return closest_on_arrays(points, vertices, faces)
 
 
 def points_to_mesh_distance(points, mesh: Mesh) -> np.ndarray:
@@ -598,8 +598,8 @@ def _reference_options(n_samples, taus, tau_unit) -> tuple[int, np.ndarray, str]
     return n_samples, np.array(values), tau_unit
 
 
-def _closest(points, vertices, faces):
-    """closest_points_on_mesh on validated arrays."""
+def closest_on_arrays(points, vertices, faces):
+    """closest_points_on_mesh on validated arrays (N, 3), (M, 3), (F, 3); no checks."""
     a, b, c = (vertices[faces[:, i]] for i in range(3))
     return _kernels.closest_points_on_mesh(points, vertices, faces, _degenerate(a, b, c))
 
@@ -632,8 +632,8 @@ def _compare_to_reference(m_vertices, m_faces, r_vertices, r_faces, n, taus, tau
     taus = taus * diagonal if tau_unit == "diagonal" else taus
     m_points, m_normals = _sample(m_vertices, m_faces, n, rng, "mesh")
     r_points, r_normals = _sample(r_vertices, r_faces, n, rng, "reference")
-    _, r_face, accuracy = _closest(m_points, r_vertices, r_faces)
-    _, m_face, completeness = _closest(r_points, m_vertices, m_faces)
+    _, r_face, accuracy = closest_on_arrays(m_points, r_vertices, r_faces)
+    _, m_face, completeness = closest_on_arrays(r_points, m_vertices, m_faces)
     consistency = [
         _normal_agreement(normals, vertices, faces, face)
         for normals, vertices, faces, face in (
@@ -677,7 +677,7 @@ def _compare_to_points(vertices, faces, points, tau):
         if diagonal == 0:
             raise InputError("points all coincide, so tau cannot default to 1 % of their extent")
         tau = 0.01 * diagonal
-    distance = _closest(points, vertices, faces)[2]
+    distance = closest_on_arrays(points, vertices, faces)[2]
     return {
         "units": _UNITS,
         "n_points": int(points.shape[0]),

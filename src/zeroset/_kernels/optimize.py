@@ -217,6 +217,17 @@ def _edge_faces(state, i, j, out):
 
 
 @jit
+def _manifold_edge(state, i, j, out):
+    # The faces of edge (i, j) into out and their number (1 or 2); 0 when i, j are not two
+    # live vertices joined by a manifold edge.
+    alive_v = state[2]
+    if i == j or not alive_v[i] or not alive_v[j]:
+        return 0
+    n = _edge_faces(state, i, j, out)
+    return n if 1 <= n <= 2 else 0
+
+
+@jit
 def _neighbours(state, v, out):
     # Distinct vertices sharing an edge with v, into out; returns how many and whether v
     # lies on the boundary (some edge of v belongs to one face only).
@@ -589,11 +600,9 @@ def try_collapse(state, i, j, kappa, c_rep, min_cos, force, result):
     """
     V, F, alive_v, alive_f, vf, deg = state[0], state[1], state[2], state[3], state[4], state[5]
     width = vf.shape[1]
-    if i == j or not alive_v[i] or not alive_v[j]:
-        return ILLEGAL_TOPOLOGY
     edge = np.zeros(4, dtype=np.int64)
-    n_edge = _edge_faces(state, i, j, edge)
-    if n_edge < 1 or n_edge > 2:
+    n_edge = _manifold_edge(state, i, j, edge)
+    if n_edge == 0:
         return ILLEGAL_TOPOLOGY
     ring_i = np.zeros(2 * width, dtype=np.int64)
     ring_j = np.zeros(2 * width, dtype=np.int64)
@@ -720,11 +729,9 @@ def try_split(state, i, j, kappa, c_rep, min_cos, force, result):
     V, F, alive_v, alive_f, vf, deg = state[0], state[1], state[2], state[3], state[4], state[5]
     sizes = state[14]
     width = vf.shape[1]
-    if i == j or not alive_v[i] or not alive_v[j]:
-        return ILLEGAL_TOPOLOGY
     edge = np.zeros(4, dtype=np.int64)
-    n_edge = _edge_faces(state, i, j, edge)
-    if n_edge < 1 or n_edge > 2:
+    n_edge = _manifold_edge(state, i, j, edge)
+    if n_edge == 0:
         return ILLEGAL_TOPOLOGY
     if sizes[0] >= V.shape[0] or sizes[1] + n_edge > F.shape[0]:
         return ILLEGAL_TOPOLOGY  # no room left; not a property of the mesh

@@ -16,8 +16,8 @@ import numpy as np
 from scipy import sparse
 from scipy.sparse.linalg import splu
 
-from .._kernels import evaluate as _bvh
 from .._kernels import optimize as _kernels
+from ..evaluate import closest_on_arrays
 from ..topology import edge_face_pairs, fold_cosines
 from .energy import distance_energy, spring_energy
 
@@ -55,11 +55,8 @@ def project(points: np.ndarray, vertices: np.ndarray, faces: np.ndarray) -> Proj
     (exact over all faces, so no point is lost because its foot falls outside a triangle or
     above a peak); the barycentric coordinates from the closest point on that face.
     """
+    _, face, _ = closest_on_arrays(points, vertices, faces)
     corners = vertices[faces]
-    normal = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
-    longest = np.max(np.sum((corners - np.roll(corners, 1, axis=1)) ** 2, axis=2), axis=1)
-    degenerate = np.linalg.norm(normal, axis=1) <= 1e-8 * longest
-    _, face, _ = _bvh.closest_points_on_mesh(points, vertices, faces, degenerate)
     distance2 = np.zeros(points.shape[0])
     bary = np.zeros((points.shape[0], 3))
     a, b, c = (np.ascontiguousarray(corners[face, k]) for k in range(3))
