@@ -13,7 +13,7 @@ import os
 import tempfile
 from pathlib import Path
 
-SECTIONS = ("phase1", "phase2", "peers")
+SECTIONS = ("phase1", "phase2", "cubes", "peers")
 
 INTRO = """# Benchmarks
 
@@ -26,6 +26,8 @@ and keeps the rest (this introduction included):
 - [Phase 2](#phase-2-mesh-optimisation): speed, memory and accuracy of `zeroset.optimize()`
   on phase-1 meshes of a noisy open pipe, 10k faces with 100k points and 100k faces with 1M
   points (`benchmarks/bench_phase2.py`).
+- [Method of Cubes](#method-of-cubes-against-marching-cubes): the two contourings of phase 1
+  side by side, and phase 2 started from each (`benchmarks/bench_cubes.py`).
 - [Peers](#peers-zeroset-against-open3d-pymeshlab-and-vtk): zeroset against the tools a user
   would otherwise pick (Open3D, PyMeshLab, VTK) on synthetic pipes with exact ground truth and
   on real scans (`benchmarks/bench_peers.py`, needs the `bench` extra).

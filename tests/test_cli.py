@@ -134,6 +134,18 @@ def test_bad_option_value_is_an_argparse_error(sphere_file, tmp_path):
     assert exit_info.value.code == 2
 
 
+def test_contour_option_chooses_the_method_of_cubes(sphere_file, tmp_path, capsys):
+    out = tmp_path / "mesh.ply"
+    assert main(["reconstruct", str(sphere_file), "-o", str(out), "--contour", "cubes"]) == 0
+    assert "mesh        Method of Cubes:" in capsys.readouterr().out
+    mesh = io.read_mesh(out)
+    assert topology.euler_characteristic(mesh) == 2 and topology.is_edge_manifold(mesh.faces)
+    with pytest.raises(SystemExit) as exit_info:
+        main(["reconstruct", str(sphere_file), "-o", str(out), "--contour", "dual"])
+    assert exit_info.value.code == 2
+    assert "invalid choice: 'dual'" in capsys.readouterr().err
+
+
 def test_demo_writes_its_folder(tmp_path, capsys):
     out = tmp_path / "demo"
     assert main(["demo", "--out", str(out), "--points", "8000"]) == 0

@@ -6,8 +6,9 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from zeroset import _lattice, topology
-from zeroset._mc_table import case_table
-from zeroset.contour import marching_cubes
+from zeroset._mc_table import case_table, patch_table
+from zeroset.contour import marching_cubes, method_of_cubes
+from zeroset.repair import split_nonmanifold_vertices
 from zeroset.types import DistanceField
 
 
@@ -104,3 +105,144 @@ def test_vertices_sit_at_the_linear_zero_crossing():
         *(mesh.vertices[mesh.faces[:, i]] - mesh.vertices[mesh.faces[:, 0]] for i in (1, 2))
     )
     assert np.all(normals @ np.array([0.3, -0.2, 0.9]) > 0)
+
+
+# Method of Cubes
+
+
+def _grid_field(values, cube=1.0):
+    """A field on the full (a, b, c) grid of `values`, in key order."""
+    ijk = np.argwhere(np.ones(values.shape, bool))
+    order = np.argsort(_lattice.encode(ijk))
+    return DistanceField(
+        vertices_ijk=ijk[order],
+        values=values.reshape(-1)[order],
+        origin=np.zeros(3),
+        cube_size=cube,
+    )
+
+
+def _no_planes():
+    """One data point far from every cube: each vertex stays at its crossings' mean."""
+    far = np.full((1, 3), 1e3)
+    return far, far, np.array([[0.0, 0.0, 1.0]])
+
+
+def _assert_valid(mesh):
+    assert mesh.faces.min(initial=0) >= 0 and mesh.faces.max(initial=-1) < mesh.n_vertices
+    assert topology.is_edge_manifold(mesh.faces)
+    assert topology.is_consistently_oriented(mesh.faces)
+    ordered = np.sort(mesh.faces, axis=1)
+    assert np.all(ordered[:, :2] != ordered[:, 1:])
+    assert np.unique(ordered, axis=0).shape[0] == mesh.n_faces
+
+
+@given(
+    seed=st.integers(0, 2**32 - 1),
+    size=st.integers(2, 8),
+    undefined=st.floats(0.0, 0.3),
+    cube=st.floats(0.01, 100.0),
+)
+def test_cubes_on_any_field_give_an_edge_manifold_oriented_mesh(seed, size, undefined, cube):
+    # Random signs reach every configuration, the ambiguous faces and several patches per cube.
+    rng = np.random.default_rng(seed)
+    values = rng.normal(size=(size, size, size)) * 0.3 * cube
+    values[rng.random(values.shape) < undefined] = np.nan
+    points = rng.uniform(0.0, (size - 1) * cube, (200, 3))
+    normals = rng.normal(size=(200, 3))
+    normals /= np.linalg.norm(normals, axis=1)[:, None]
+    mesh = method_of_cubes(_grid_field(values, cube), points, points + 0.1 * cube, normals)
+    _assert_valid(mesh)
+    grid = mesh.vertices / cube
+    assert np.all((grid >= -1e-9) & (grid <= size - 1 + 1e-9))  # clamped to their cubes
+    split, _ = split_nonmanifold_vertices(mesh)
+    fans, n_fans = topology.corner_fans(
+        split.faces, topology.edge_ids(split.faces, split.n_vertices)[0]
+    )
+    assert n_fans == np.unique(split.faces).size  # one fan per vertex: vertex-manifold
+
+
+def test_cubes_give_one_vertex_per_cube_on_the_averaged_plane():
+    # The plane z = 0.3 + 0.1 x through a 6 x 6 x 3 grid; the data lie on z = 0.35 + 0.1 x.
+    x, y, z = np.meshgrid(np.arange(6.0), np.arange(6.0), np.arange(3.0), indexing="ij")
+    field = _grid_field(z - 0.3 - 0.1 * x)
+    rng = np.random.default_rng(0)
+    points = np.c_[rng.uniform(0, 5, (4000, 2)), np.zeros(4000)]
+    points[:, 2] = 0.35 + 0.1 * points[:, 0]
+    normal = np.array([-0.1, 0.0, 1.0]) / np.hypot(0.1, 1.0)
+    mesh = method_of_cubes(field, points, points, np.tile(normal, (4000, 1)))
+    assert mesh.n_vertices == 5 * 5  # the crossed cubes
+    assert mesh.n_faces == 2 * 4 * 4  # two triangles around each inner vertical edge
+    np.testing.assert_allclose(mesh.vertices[:, 2], 0.35 + 0.1 * mesh.vertices[:, 0], atol=1e-12)
+    normals = np.cross(
+        *(mesh.vertices[mesh.faces[:, i]] - mesh.vertices[mesh.faces[:, 0]] for i in (1, 2))
+    )
+    assert np.all(normals[:, 2] > 0)  # towards positive values
+
+
+def test_cubes_sphere_field_is_closed_outward_and_on_the_sphere():
+    field = _field(_sphere, 30, 0.05, band=0.2)
+    rng = np.random.default_rng(1)
+    normals = rng.normal(size=(50_000, 3))
+    normals /= np.linalg.norm(normals, axis=1)[:, None]
+    points = 0.0137 + normals
+    mesh = method_of_cubes(field, points, points, normals)
+    _assert_valid(mesh)
+    assert topology.boundary_loops(mesh.faces) == []
+    assert topology.euler_characteristic(mesh) == 2
+    assert topology.signed_volume(mesh) == pytest.approx(4 / 3 * np.pi, rel=0.01)
+    assert np.abs(_sphere(mesh.vertices)).max() < 0.05**2
+    # Two triangles per crossed lattice edge, where marching cubes has one vertex per crossed
+    # edge: on a closed surface Euler's formula gives F_cubes = 2 E_crossed = F_marching + 2 chi.
+    assert mesh.n_faces == marching_cubes(field).n_faces + 2 * 2
+
+
+def test_cubes_split_the_vertex_of_a_cube_holding_two_sheets():
+    # A slab one cube diagonal thick across the grid's diagonal, negative inside: the cubes
+    # centred on its mid-plane have only their two far corners outside, so each holds both
+    # sheets. One vertex per cube would pinch the sheets together on the mid-plane; a
+    # vertex per patch keeps two separate planes.
+    ijk = np.meshgrid(*[np.arange(8.0)] * 3, indexing="ij")
+    height = (sum(ijk) - 7.5) / np.sqrt(3.0)
+    mesh = method_of_cubes(_grid_field(np.abs(height) - 0.5), *_no_planes())
+    _assert_valid(mesh)
+    assert topology.face_components(mesh.faces, mesh.n_vertices)[0] == 2
+    distance = np.abs(np.abs((mesh.vertices.sum(axis=1) - 7.5) / np.sqrt(3.0)) - 0.5)
+    assert distance.max() < 0.1
+
+
+def test_cubes_meeting_twice_across_an_ambiguous_face_stay_manifold():
+    # Two stacked cubes whose single patches both cross their common face twice (the face
+    # has positive corners on one diagonal): joined directly, their two vertices would share
+    # one edge between four triangles.
+    _, counts = patch_table()
+    assert counts[157] == counts[217] == 1
+    rng = np.random.default_rng(7)
+    values = rng.normal(size=(4, 4, 5)) * 0.3
+    for base, config in (((1, 1, 1), 157), ((1, 1, 2), 217)):
+        for c in range(8):
+            i, j, k = np.add(base, [(c & 1), (c >> 1) & 1, (c >> 2) & 1])
+            values[i, j, k] = abs(values[i, j, k]) * (1 if config >> c & 1 else -1)
+    mesh = method_of_cubes(_grid_field(values), *_no_planes())
+    _assert_valid(mesh)
+    # Each of the two meetings got its own vertex on the shared face z = 2.
+    on_face = np.isclose(mesh.vertices[:, 2], 2.0) & np.all(
+        (mesh.vertices[:, :2] > 1) & (mesh.vertices[:, :2] < 2), axis=1
+    )
+    assert np.count_nonzero(on_face) == 2
+
+
+def test_cubes_with_an_undefined_corner_leave_a_boundary():
+    x, y, z = np.meshgrid(np.arange(11.0), np.arange(11.0), np.arange(3.0), indexing="ij")
+    values = z - 0.8
+    values[5, 5, 1] = np.nan  # the eight cubes around it are skipped
+    mesh = method_of_cubes(_grid_field(values), *_no_planes())
+    _assert_valid(mesh)
+    assert len(topology.boundary_loops(mesh.faces)) == 2
+
+
+def test_cubes_reject_mismatched_planes():
+    with pytest.raises(ValueError, match="one row each per point"):
+        method_of_cubes(
+            _grid_field(np.ones((2, 2, 2))), np.zeros((3, 3)), np.zeros((2, 3)), np.ones((3, 3))
+        )

@@ -18,6 +18,7 @@ from zeroset.evaluate import (
     mesh_quality,
     points_to_mesh_distance,
     sample_surface,
+    smallest_angles,
 )
 from zeroset.types import Mesh
 
@@ -379,6 +380,13 @@ def test_regular_tetrahedron_quality():
     assert quality["min_angle_degrees"]["min"] == pytest.approx(60.0, abs=1e-9)
     assert quality["area"] == pytest.approx(8 * np.sqrt(3))  # four triangles of side 2 sqrt 2
     json.dumps(quality, allow_nan=False)
+
+
+def test_smallest_angles_per_face():
+    vertices = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [2, 0, 0], [0.5, 3**0.5 / 2, 0]])
+    faces = np.array([[0, 1, 2], [0, 1, 4], [0, 1, 3], [2, 1, 0]])
+    angles = smallest_angles(Mesh(vertices=vertices, faces=faces))
+    np.testing.assert_allclose(angles, [45.0, 60.0, 0.0, 45.0], atol=1e-9)
 
 
 def test_right_isosceles_aspect_ratio():

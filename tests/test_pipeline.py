@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from zeroset import InputError, ReconstructionError, reconstruct, topology
+from zeroset import InputError, ReconstructionError, evaluate, reconstruct, topology
 from zeroset.evaluate import points_to_mesh_distance
 from zeroset.synthetic import sample_cylinder, sample_sphere
 
@@ -185,6 +185,11 @@ def test_unknown_option_is_a_type_error():
         reconstruct(np.zeros((10, 3)), not_an_option=1)
 
 
+def test_unknown_contouring_is_a_value_error():
+    with pytest.raises(ValueError, match=r"contour must be one of \('marching', 'cubes'\)"):
+        reconstruct(np.zeros((10, 3)), contour="dual")
+
+
 def test_scan_lines_far_apart_reconstruct_in_one_piece():
     # Lines along the pipe 1 mm apart within a line, 4 degrees (17 mm) between lines: the
     # nearest neighbours of a point all lie on its own line.
@@ -196,3 +201,27 @@ def test_scan_lines_far_apart_reconstruct_in_one_piece():
     assert result.stats["boundary_loops"] == 2
     radius = np.hypot(result.mesh.vertices[:, 0], result.mesh.vertices[:, 1])
     assert np.abs(radius - 0.25).mean() < 0.002
+
+
+@pytest.mark.parametrize("name, loops, euler", [("pipe", 2, 0), ("sphere", 0, 2), ("torus", 0, 0)])
+def test_method_of_cubes_keeps_topology_and_accuracy_with_better_triangles(
+    name, loops, euler, request
+):
+    sample, marching = request.getfixturevalue(name)
+    result = reconstruct(sample.points, contour="cubes")
+    mesh = result.mesh
+    assert result.parameters.cube_size == marching.parameters.cube_size
+    assert len(topology.boundary_loops(mesh.faces)) == loops
+    assert topology.euler_characteristic(mesh) == euler
+    assert topology.is_edge_manifold(mesh.faces) and topology.is_consistently_oriented(mesh.faces)
+    assert result.stats["mesh_components"] == 1
+    if not loops:
+        assert topology.signed_volume(mesh) > 0
+    # Mean distance of the mesh's surface to the true surface: no worse than marching cubes.
+    points, _ = evaluate.sample_surface(mesh, 50_000, rng=0)
+    reference, _ = evaluate.sample_surface(marching.mesh, 50_000, rng=0)
+    assert np.abs(sample.distance(points)).mean() <= np.abs(sample.distance(reference)).mean()
+    # No slivers: the smallest angles are far above marching cubes' (which reach 0).
+    ours, theirs = evaluate.smallest_angles(mesh), evaluate.smallest_angles(marching.mesh)
+    assert np.percentile(ours, 5) > 20.0 > np.percentile(theirs, 5)
+    assert mesh.n_faces <= marching.mesh.n_faces + 2 * euler

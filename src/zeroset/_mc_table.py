@@ -7,6 +7,9 @@ sharing a face draw the same segments). The segments chain into closed loops, an
 loop is fanned into triangles. Segments are directed consistently with the face's
 outward orientation, so a shared face contributes opposite half-edges to its two cubes:
 the result is an edge-manifold, consistently oriented mesh with no cracks.
+
+Each loop is one patch of surface inside the cube; the Method of Cubes puts one vertex on
+each patch (`patch_table`).
 """
 
 from __future__ import annotations
@@ -15,7 +18,14 @@ from functools import cache
 
 import numpy as np
 
-__all__ = ["CORNER_OFFSETS", "EDGE_AXIS", "EDGE_CORNER", "case_table"]
+__all__ = [
+    "CORNER_OFFSETS",
+    "EDGE_AXIS",
+    "EDGE_CORNER",
+    "FACE_CORNERS",
+    "case_table",
+    "patch_table",
+]
 
 #: (8, 3) int64 lattice offset of cube corner ``c = x + 2y + 4z``.
 CORNER_OFFSETS = np.array([[c & 1, (c >> 1) & 1, (c >> 2) & 1] for c in range(8)], dtype=np.int64)
@@ -91,6 +101,11 @@ def _fan(loop: list[int]) -> list[tuple[int, int, int]]:
     raise AssertionError(f"no face-free fan for loop {loop}")
 
 
+#: (6, 4) int64 corners of cube face ``2 * axis + side`` (the face at ``axis = side``), in
+#: order around the face.
+FACE_CORNERS = np.array(_faces(), dtype=np.int64)
+
+
 @cache
 def case_table() -> tuple[np.ndarray, np.ndarray]:
     """Return the triangulation of every sign configuration.
@@ -110,3 +125,24 @@ def case_table() -> tuple[np.ndarray, np.ndarray]:
         if tris:
             triangles[config, : len(tris)] = tris
     return triangles, np.array([len(t) for t in per_config], dtype=np.int64)
+
+
+@cache
+def patch_table() -> tuple[np.ndarray, np.ndarray]:
+    """Return which surface patch of its cube every crossed cube edge belongs to.
+
+    Returns
+    -------
+    patch : (256, 12) int64
+        Patch (loop of `case_table`) of each cube edge, -1 where the edge is not crossed.
+    counts : (256,) int64
+        Patches per configuration: 0 without a sign change, up to 4.
+    """
+    patch = np.full((256, 12), -1, dtype=np.int64)
+    counts = np.zeros(256, dtype=np.int64)
+    for config in range(256):
+        loops = _loops(_segments(config))
+        for index, loop in enumerate(loops):
+            patch[config, loop] = index
+        counts[config] = len(loops)
+    return patch, counts

@@ -190,6 +190,8 @@ def _add_config_options(parser: argparse.ArgumentParser) -> None:
                 if f.metadata["nargs"] == 3
                 else ("x0", "y0", "z0", "x1", "y1", "z1")
             )
+        elif "choices" in f.metadata:
+            convert, metavar = str, "{" + ",".join(f.metadata["choices"]) + "}"
         else:
             convert = int if kind.startswith("int") else float
             metavar = f.name.upper()
@@ -198,6 +200,7 @@ def _add_config_options(parser: argparse.ArgumentParser) -> None:
             *names,
             dest=f.name,
             type=convert,
+            choices=f.metadata.get("choices"),
             default=argparse.SUPPRESS,
             metavar=metavar,
             help=f.metadata["help"] + default,

@@ -4,7 +4,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field, fields, replace
 
-__all__ = ["ReconstructionConfig"]
+__all__ = ["CONTOURS", "ReconstructionConfig"]
+
+#: The contouring methods of phase 1.
+CONTOURS = ("marching", "cubes")
 
 
 def _opt(default, help: str, **extra):
@@ -43,6 +46,11 @@ class ReconstructionConfig:
     viewpoint: tuple[float, float, float] | None = _opt(
         None, "sensor position x,y,z: orient normals towards it", nargs=3
     )
+    contour: str = _opt(
+        "marching",
+        "contouring: marching (marching cubes) or cubes (Method of Cubes, one vertex per cube)",
+        choices=CONTOURS,
+    )
     min_component_faces: int = _opt(20, "drop mesh components with fewer faces")
     max_hole_edges: int = _opt(6, "close boundary loops of at most this many edges (0: none)")
     c_rep: float | None = _opt(
@@ -54,6 +62,8 @@ class ReconstructionConfig:
     seed: int = _opt(0, "seed of every random choice")
 
     def __post_init__(self) -> None:
+        if self.contour not in CONTOURS:
+            raise ValueError(f"contour must be one of {CONTOURS}; got {self.contour!r}")
         if self.k_max <= self.min_neighbours or self.k_max < self.k_min:
             raise ValueError(
                 f"k_max must exceed min_neighbours and be at least k_min; got k_max={self.k_max}, "

@@ -28,6 +28,7 @@ __all__ = [
     "mesh_quality",
     "points_to_mesh_distance",
     "sample_surface",
+    "smallest_angles",
 ]
 
 # A face is degenerate when twice its area is at most this share of its longest edge
@@ -455,6 +456,36 @@ def mesh_quality(mesh: Mesh) -> dict:
     return _mesh_quality(vertices, faces)
 
 
+def smallest_angles(mesh: Mesh) -> np.ndarray:
+    """Return the smallest interior angle of every face, in degrees.
+
+    Parameters
+    ----------
+    mesh : Mesh
+
+    Returns
+    -------
+    (F,) float64
+        In [0, 60]; 0 for a degenerate face.
+
+    Raises
+    ------
+    TypeError
+        If `mesh` is not a Mesh.
+    ValueError
+        If the mesh has no faces or its faces index missing vertices.
+
+    Examples
+    --------
+    >>> from zeroset.types import Mesh
+    >>> mesh = Mesh(vertices=np.eye(3), faces=np.array([[0, 1, 2]]))
+    >>> smallest_angles(mesh).round(6)
+    array([60.])
+    """
+    vertices, faces = _as_mesh(mesh)
+    return _smallest_angle_degrees(*(vertices[faces[:, i]] for i in range(3)))
+
+
 def evaluate(
     mesh: Mesh,
     *,
@@ -778,7 +809,7 @@ def _aspect_ratio(a, b, c) -> np.ndarray:
 
 
 def _smallest_angle_degrees(a, b, c) -> np.ndarray:
-    """Smallest interior angle (N,) of each proper triangle, in degrees."""
+    """Smallest interior angle (N,) of each triangle, in degrees."""
     angles = [
         np.arctan2(np.linalg.norm(np.cross(u - o, v - o), axis=1), _dot(u - o, v - o))
         for o, u, v in ((a, b, c), (b, c, a), (c, a, b))

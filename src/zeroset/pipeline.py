@@ -10,7 +10,7 @@ from . import topology
 from ._progress import Stages
 from ._validate import as_points
 from .config import ReconstructionConfig
-from .contour import marching_cubes
+from .contour import marching_cubes, method_of_cubes
 from .distance import signed_distance
 from .errors import InputError, ReconstructionError
 from .neighbours import knn, restrict, spatial_order
@@ -211,7 +211,10 @@ def reconstruct(
             stats["grid_vertices"] = int(field_.values.size)
             stats["undefined_grid_vertices"] = int(np.count_nonzero(np.isnan(field_.values)))
         with stages.stage("contour"):
-            mesh = marching_cubes(field_)
+            if config.contour == "cubes":
+                mesh = method_of_cubes(field_, phase1, planes.centroids, orientation.normals)
+            else:
+                mesh = marching_cubes(field_)
             mesh, stats["bowtie_vertices_split"] = split_nonmanifold_vertices(mesh)
             mesh, stats["small_holes_filled"] = fill_small_holes(mesh, config.max_hole_edges)
             mesh, stats["small_components_dropped"] = remove_small_components(

@@ -102,6 +102,10 @@ def optimization_lines(report: dict) -> list[str]:
     ]
 
 
+#: How the report names each contouring method.
+CONTOUR_NAMES = {"marching": "marching cubes", "cubes": "Method of Cubes"}
+
+
 def format_report(report: dict) -> str:
     """Render a report from :func:`reconstruction_report` as a few aligned lines of text."""
     stats = report["stats"]
@@ -124,7 +128,8 @@ def format_report(report: dict) -> str:
         f"orientation {stats['orientation_components']} component(s)",
         f"grid        {stats['grid_vertices']:,} vertices evaluated, "
         f"{stats['undefined_grid_vertices']:,} undefined",
-        f"mesh        {stats['vertices']:,} vertices, {stats['faces']:,} triangles, "
+        f"mesh        {CONTOUR_NAMES[report['config']['contour']]}: "
+        f"{stats['vertices']:,} vertices, {stats['faces']:,} triangles, "
         f"{stats['boundary_loops']} boundary loop(s), {stats['mesh_components']} component(s), "
         f"Euler characteristic {stats['euler_characteristic']}",
         f"repairs     {stats['small_holes_filled']} small hole(s) closed, "
