@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 from _docfile import replace_section
-from bench_phase1 import CYLINDER, DEFAULT_OUTPUT, WARMUP_POINTS, machine_info, machine_lines
+from bench_phase1 import CYLINDER, DEFAULT_OUTPUT, WARMUP_POINTS, machine_info, reproduce_lines
 
 import zeroset
 from zeroset import evaluate, topology
@@ -183,13 +183,7 @@ def render(phase1: list[dict], phase2: list[dict], machine: dict, command: str) 
         "- The last column group is the Method of Cubes at √2 × the cube size, which halves the "
         "triangles.",
         "",
-        "Reproduce from the repository root:",
-        "",
-        "```",
-        command,
-        "```",
-        "",
-        *machine_lines(machine),
+        *reproduce_lines(command, machine),
         "",
         "### Phase 1: triangles, topology and accuracy",
         "",

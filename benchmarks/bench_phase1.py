@@ -124,6 +124,21 @@ def summarise(report: dict) -> dict:
     }
 
 
+def reproduce_lines(command: str, machine: dict, duration: str = "") -> list[str]:
+    """The command that reproduces a report, then the machine it ran on; `duration` says how
+    long it takes, in words."""
+    when = f" ({duration})" if duration else ""
+    return [
+        f"Reproduce from the repository root{when}:",
+        "",
+        "```",
+        command,
+        "```",
+        "",
+        *machine_lines(machine),
+    ]
+
+
 def machine_lines(machine: dict, extra: str = "") -> list[str]:
     """The "Machine" subsection of a report from `machine_info()`; `extra` ends the versions."""
     return [
@@ -199,13 +214,7 @@ def render(reports: list[dict], machine: dict, command: str, repeat: int) -> str
         "- *Phase-1 points* is `stats['phase1_points']`, the points the tangent planes are "
         "fitted to after phase-1 sampling and outlier removal.",
         "",
-        "Reproduce from the repository root (takes a few minutes):",
-        "",
-        "```",
-        command,
-        "```",
-        "",
-        *machine_lines(machine),
+        *reproduce_lines(command, machine, "takes a few minutes"),
         "",
         "### Summary",
         "",

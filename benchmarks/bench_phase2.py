@@ -35,7 +35,7 @@ from bench_phase1 import (
     TARGET_CORES,
     WARMUP_POINTS,
     machine_info,
-    machine_lines,
+    reproduce_lines,
 )
 
 # name: (points, phase-1 cube_size, target seconds). The cube sizes were measured on this pipe:
@@ -179,13 +179,7 @@ def render(reports: list[dict], machine: dict, command: str, scale: float) -> st
         f"- Accuracy is the mean distance of {SURFACE_SAMPLES:,} area-uniform samples of the mesh "
         f"to the true cylinder, in mm (the noise is {CYLINDER['noise'] * 1000:g} mm per axis).",
         "",
-        "Reproduce from the repository root:",
-        "",
-        "```",
-        command,
-        "```",
-        "",
-        *machine_lines(machine),
+        *reproduce_lines(command, machine),
         "",
         "### Summary",
         "",

@@ -1,4 +1,4 @@
-"""Marching cubes on analytic fields: topology, orientation, accuracy, undefined cubes."""
+"""Marching cubes and the Method of Cubes: topology, orientation, accuracy, undefined cubes."""
 
 import numpy as np
 import pytest
@@ -30,6 +30,49 @@ def _sphere(x):
     return np.linalg.norm(x - 0.0137, axis=1) - 1.0
 
 
+def _grid_field(values, cube=1.0):
+    """A field on the full (a, b, c) grid of `values`, in key order."""
+    ijk = np.argwhere(np.ones(values.shape, bool))
+    order = np.argsort(_lattice.encode(ijk))
+    return DistanceField(
+        vertices_ijk=ijk[order],
+        values=values.reshape(-1)[order],
+        origin=np.zeros(3),
+        cube_size=cube,
+    )
+
+
+def _no_planes():
+    """One data point far from every cube: each vertex stays at its crossings' mean."""
+    far = np.full((1, 3), 1e3)
+    return far, far, np.array([[0.0, 0.0, 1.0]])
+
+
+def _assert_valid(mesh):
+    assert mesh.faces.min(initial=0) >= 0 and mesh.faces.max(initial=-1) < mesh.n_vertices
+    assert topology.is_edge_manifold(mesh.faces)
+    assert topology.is_consistently_oriented(mesh.faces)
+    ordered = np.sort(mesh.faces, axis=1)
+    assert np.all(ordered[:, :2] != ordered[:, 1:])
+    assert np.unique(ordered, axis=0).shape[0] == mesh.n_faces
+
+
+def _random_field(seed, size, undefined, cube):
+    """Random signs on a size^3 grid (every configuration, ambiguous faces included)."""
+    rng = np.random.default_rng(seed)
+    values = rng.normal(size=(size, size, size)) * 0.3 * cube
+    values[rng.random(values.shape) < undefined] = np.nan
+    return _grid_field(values, cube)
+
+
+FIELDS = given(
+    seed=st.integers(0, 2**32 - 1),
+    size=st.integers(2, 9),
+    undefined=st.floats(0.0, 0.3),
+    cube=st.floats(0.01, 100.0),
+)
+
+
 def test_case_table_triangulates_every_sign_change_and_nothing_else():
     table, counts = case_table()
     assert counts[0] == 0 and counts[255] == 0
@@ -51,26 +94,10 @@ def test_sphere_field_gives_closed_outward_genus_zero_mesh():
     assert np.abs(_sphere(mesh.vertices)).max() < 0.05**2
 
 
-@given(
-    seed=st.integers(0, 2**32 - 1),
-    size=st.integers(2, 9),
-    undefined=st.floats(0.0, 0.3),
-    cube=st.floats(0.01, 100.0),
-)
+@FIELDS
 def test_any_field_gives_a_valid_edge_manifold_oriented_mesh(seed, size, undefined, cube):
-    rng = np.random.default_rng(seed)
-    steps = np.arange(size)
-    ijk = np.stack(np.meshgrid(steps, steps, steps, indexing="ij"), axis=-1).reshape(-1, 3)
-    values = rng.normal(size=len(ijk)) * cube
-    values[rng.random(len(ijk)) < undefined] = np.nan
-    field = DistanceField(vertices_ijk=ijk, values=values, origin=np.zeros(3), cube_size=cube)
-    mesh = marching_cubes(field)
-    assert mesh.faces.min(initial=0) >= 0 and mesh.faces.max(initial=-1) < mesh.n_vertices
-    assert topology.is_edge_manifold(mesh.faces)
-    assert topology.is_consistently_oriented(mesh.faces)
-    ordered = np.sort(mesh.faces, axis=1)
-    assert np.all(ordered[:, :2] != ordered[:, 1:])  # three distinct vertices per face
-    assert np.unique(ordered, axis=0).shape[0] == mesh.n_faces
+    mesh = marching_cubes(_random_field(seed, size, undefined, cube))
+    _assert_valid(mesh)
     # Every vertex lies on a lattice edge inside the grid.
     grid = mesh.vertices / cube
     assert np.all((grid >= -1e-9) & (grid <= size - 1 + 1e-9))
@@ -110,56 +137,20 @@ def test_vertices_sit_at_the_linear_zero_crossing():
 # Method of Cubes
 
 
-def _grid_field(values, cube=1.0):
-    """A field on the full (a, b, c) grid of `values`, in key order."""
-    ijk = np.argwhere(np.ones(values.shape, bool))
-    order = np.argsort(_lattice.encode(ijk))
-    return DistanceField(
-        vertices_ijk=ijk[order],
-        values=values.reshape(-1)[order],
-        origin=np.zeros(3),
-        cube_size=cube,
-    )
-
-
-def _no_planes():
-    """One data point far from every cube: each vertex stays at its crossings' mean."""
-    far = np.full((1, 3), 1e3)
-    return far, far, np.array([[0.0, 0.0, 1.0]])
-
-
-def _assert_valid(mesh):
-    assert mesh.faces.min(initial=0) >= 0 and mesh.faces.max(initial=-1) < mesh.n_vertices
-    assert topology.is_edge_manifold(mesh.faces)
-    assert topology.is_consistently_oriented(mesh.faces)
-    ordered = np.sort(mesh.faces, axis=1)
-    assert np.all(ordered[:, :2] != ordered[:, 1:])
-    assert np.unique(ordered, axis=0).shape[0] == mesh.n_faces
-
-
-@given(
-    seed=st.integers(0, 2**32 - 1),
-    size=st.integers(2, 8),
-    undefined=st.floats(0.0, 0.3),
-    cube=st.floats(0.01, 100.0),
-)
+@FIELDS
 def test_cubes_on_any_field_give_an_edge_manifold_oriented_mesh(seed, size, undefined, cube):
-    # Random signs reach every configuration, the ambiguous faces and several patches per cube.
     rng = np.random.default_rng(seed)
-    values = rng.normal(size=(size, size, size)) * 0.3 * cube
-    values[rng.random(values.shape) < undefined] = np.nan
     points = rng.uniform(0.0, (size - 1) * cube, (200, 3))
     normals = rng.normal(size=(200, 3))
     normals /= np.linalg.norm(normals, axis=1)[:, None]
-    mesh = method_of_cubes(_grid_field(values, cube), points, points + 0.1 * cube, normals)
+    field = _random_field(seed, size, undefined, cube)
+    mesh = method_of_cubes(field, points, points + 0.1 * cube, normals)
     _assert_valid(mesh)
     grid = mesh.vertices / cube
     assert np.all((grid >= -1e-9) & (grid <= size - 1 + 1e-9))  # clamped to their cubes
     split, _ = split_nonmanifold_vertices(mesh)
-    fans, n_fans = topology.corner_fans(
-        split.faces, topology.edge_ids(split.faces, split.n_vertices)[0]
-    )
-    assert n_fans == np.unique(split.faces).size  # one fan per vertex: vertex-manifold
+    edges = topology.edge_ids(split.faces, split.n_vertices)[0]
+    assert topology.corner_fans(split.faces, edges)[1] == np.unique(split.faces).size
 
 
 def test_cubes_give_one_vertex_per_cube_on_the_averaged_plane():
