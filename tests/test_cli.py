@@ -146,6 +146,88 @@ def test_contour_option_chooses_the_method_of_cubes(sphere_file, tmp_path, capsy
     assert "invalid choice: 'dual'" in capsys.readouterr().err
 
 
+def test_report_suffix_chooses_html(sphere_file, tmp_path):
+    out = tmp_path / "report.html"
+    code = main(
+        [
+            "reconstruct",
+            str(sphere_file),
+            "-o",
+            str(tmp_path / "m.ply"),
+            "--report",
+            str(out),
+            "--quiet",
+        ]
+    )
+    assert code == 0
+    page = out.read_text()
+    assert page.startswith("<!doctype html>") and 'id="zeroset-layers"' in page
+
+
+def test_render_draws_a_mesh_with_its_points(tmp_path, capsys):
+    points = tmp_path / "pipe.ply"
+    assert (
+        main(
+            [
+                "synth",
+                "cylinder",
+                "-o",
+                str(points),
+                "--points",
+                "6000",
+                "--noise",
+                "0.002",
+                "--quiet",
+            ]
+        )
+        == 0
+    )
+    mesh = tmp_path / "mesh.ply"
+    assert main(["reconstruct", str(points), "-o", str(mesh), "--quiet"]) == 0
+    picture = tmp_path / "mesh.png"
+    assert (
+        main(
+            [
+                "render",
+                str(mesh),
+                str(points),
+                "-o",
+                str(picture),
+                "--distance",
+                "--normals",
+                "--size",
+                "320x160",
+            ]
+        )
+        == 0
+    )
+    assert picture.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert "picture     written" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize(
+    "extra, message",
+    [
+        (["-o", "x.jpg"], "must be a .png file"),
+        (["-o", "x.png", "--size", "big"], "WIDTHxHEIGHT"),
+        (["-o", "x.png", "--size", "4x4"], "between 16 and 8192"),
+        (["-o", "x.png", "--distance"], "need a POINTS file"),
+    ],
+)
+def test_render_rejects_bad_options(extra, message, tmp_path, capsys):
+    mesh = tmp_path / "t.ply"
+    io.write_mesh(mesh, _triangle())
+    extra = [str(tmp_path / e) if e.endswith((".png", ".jpg")) else e for e in extra]
+    assert main(["render", str(mesh), *extra]) == 2
+    assert message in capsys.readouterr().err
+
+
+def _triangle():
+    from zeroset.types import Mesh
+
+    return Mesh(vertices=np.eye(3), faces=np.array([[0, 1, 2]]))
+
+
 def test_demo_writes_its_folder(tmp_path, capsys):
     out = tmp_path / "demo"
     assert main(["demo", "--out", str(out), "--points", "8000"]) == 0
@@ -154,9 +236,12 @@ def test_demo_writes_its_folder(tmp_path, capsys):
         "mesh.ply",
         "preview.png",
         "report.json",
+        "report.html",
     }
     report = json.loads((out / "report.json").read_text())
     assert report["stats"]["boundary_loops"] == 2
+    page = (out / "report.html").read_text()
+    assert '"boundary_loops": 2' in page and "window.THREE" in page
     printed = capsys.readouterr().out
     assert "outliers dropped" in printed and "triangles" in printed and str(out) in printed
 

@@ -1,4 +1,4 @@
-"""Command line: ``zeroset reconstruct``, ``optimize``, ``demo``, ``synth``, ``evaluate``."""
+"""The command line: ``zeroset reconstruct``, ``optimize``, ``render``, ``demo`` and more."""
 
 from __future__ import annotations
 
@@ -10,6 +10,7 @@ from pathlib import Path
 __all__ = ["main"]
 
 DEMO_POINTS = 40_000
+HTML_SUFFIXES = (".html", ".htm")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -55,7 +56,11 @@ def _parser() -> argparse.ArgumentParser:
     )
     rec.add_argument("input", type=Path, help="points: .ply .xyz .txt .csv .pts .npy .npz")
     rec.add_argument("-o", "--output", type=Path, required=True, help="mesh: .ply .obj .stl .off")
-    rec.add_argument("--report", type=Path, help="write parameters, counts and timings as JSON")
+    rec.add_argument(
+        "--report",
+        type=Path,
+        help="write parameters, counts and timings: .json, or .html with a 3D viewer",
+    )
     rec.add_argument("--preview", type=Path, help="write a PNG picture of the mesh")
     rec.add_argument("--ascii", action="store_true", help="write PLY as text instead of binary")
     rec.add_argument(
@@ -83,6 +88,28 @@ def _parser() -> argparse.ArgumentParser:
     opt.add_argument("--kappa", type=float, help="first spring constant (default: from the data)")
     opt.add_argument("--seed", type=int, default=0, help="seed of the random move order")
     opt.set_defaults(command="optimize", run=_run_optimize)
+
+    ren = commands.add_parser(
+        "render",
+        parents=[common],
+        help="draw a mesh as a PNG picture",
+        description="Draw a mesh, shaded (outside blue, inside orange), from two views, "
+        "off-screen, with its boundary edges in red and optionally the points, their normals "
+        "and colours by distance to the points.",
+    )
+    ren.add_argument("mesh", type=Path, help="mesh: .ply .obj .stl .off")
+    ren.add_argument(
+        "points", type=Path, nargs="?", help="points to draw: .ply .xyz .txt .csv .pts .npy .npz"
+    )
+    ren.add_argument("-o", "--output", type=Path, required=True, help="picture: .png")
+    ren.add_argument("--hide-points", action="store_true", help="use POINTS but do not draw them")
+    ren.add_argument("--normals", action="store_true", help="draw the normals POINTS carry")
+    ren.add_argument(
+        "--distance", action="store_true", help="colour the mesh by how far POINTS lie from it"
+    )
+    ren.add_argument("--no-boundaries", action="store_true", help="do not mark boundary edges")
+    ren.add_argument("--size", default="1200x600", help="picture size WIDTHxHEIGHT in pixels")
+    ren.set_defaults(command="render", run=_run_render)
 
     demo = commands.add_parser(
         "demo",
@@ -252,7 +279,7 @@ def _run_reconstruct(args: argparse.Namespace) -> int:
         points=cloud.points,
         source=str(args.input),
         mesh_path=args.output,
-        report_path=args.report,
+        report_paths=[args.report] if args.report else [],
         preview_path=args.preview,
     )
 
@@ -284,18 +311,62 @@ def _run_optimize(args: argparse.Namespace) -> int:
     return 0
 
 
-def _check_outputs(mesh: Path, *others: Path | None) -> None:
+def _check_outputs(mesh: Path | None, *others: Path | None) -> None:
     """Refuse an output mesh of unknown format, or any output whose folder is missing."""
     from . import io
     from .errors import InputError
 
-    if mesh.suffix.lower() not in io.MESH_FORMATS:
+    if mesh is not None and mesh.suffix.lower() not in io.MESH_FORMATS:
         raise InputError(
             f"{mesh}: unknown mesh format {mesh.suffix!r}; supported: {', '.join(io.MESH_FORMATS)}"
         )
     for target in (mesh, *others):
         if target is not None and not target.resolve().parent.is_dir():
             raise InputError(f"{target}: directory {target.parent} does not exist")
+
+
+def _run_render(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from . import io
+    from .errors import InputError
+    from .viz import distance_colours, preview, vertex_distances
+
+    if args.output.suffix.lower() != ".png":
+        raise InputError(f"{args.output}: the picture must be a .png file")
+    _check_outputs(None, args.output)
+    try:
+        width, height = (int(part) for part in args.size.lower().split("x"))
+    except ValueError:
+        raise InputError(f"--size must be WIDTHxHEIGHT, e.g. 1200x600; got {args.size!r}") from None
+    if not (16 <= width <= 8192 and 16 <= height <= 8192):
+        raise InputError(f"--size must be between 16 and 8192 pixels each way; got {args.size}")
+    mesh = io.read_mesh(args.mesh)
+    cloud = io.read_points(args.points) if args.points else None
+    if cloud is None and (args.distance or args.normals or args.hide_points):
+        raise InputError("--distance, --normals and --hide-points need a POINTS file")
+    if args.normals and cloud.normals is None:
+        raise InputError(f"{args.points}: the file carries no normals to draw")
+    title, colours = args.mesh.name, None
+    if args.distance:
+        distances = vertex_distances(mesh, cloud.points)
+        limit = float(np.nanpercentile(distances, 95))
+        colours = distance_colours(distances, limit=limit)
+        title += f": colour = distance of the points, 0 (dark blue) to {limit:.3g} (yellow)"
+    preview(
+        mesh,
+        args.output,
+        title=title,
+        points=None if cloud is None or args.hide_points else cloud.points,
+        normals=(cloud.points, cloud.normals) if args.normals else None,
+        boundaries=not args.no_boundaries,
+        colours=colours,
+        width=width,
+        height=height,
+    )
+    if not args.quiet:
+        print(f"picture     written to {args.output}")
+    return 0
 
 
 def _run_demo(args: argparse.Namespace) -> int:
@@ -314,7 +385,7 @@ def _run_demo(args: argparse.Namespace) -> int:
         points=sample.points,
         source=str(points_path),
         mesh_path=args.out / "mesh.ply",
-        report_path=args.out / "report.json",
+        report_paths=[args.out / "report.json", args.out / "report.html"],
         preview_path=args.out / "preview.png",
     )
     if not args.quiet:
@@ -322,7 +393,10 @@ def _run_demo(args: argparse.Namespace) -> int:
             f"accuracy    mesh vertices lie {1000 * distance.mean():.2f} mm (mean) and "
             f"{1000 * distance.max():.2f} mm (max) from the true pipe"
         )
-        print(f"wrote       {args.out}/: pipe-points.ply, mesh.ply, preview.png, report.json")
+        print(
+            f"wrote       {args.out}/: pipe-points.ply, mesh.ply, preview.png, report.json, "
+            "report.html (open it in a browser)"
+        )
     return code
 
 
@@ -372,19 +446,28 @@ def _run_evaluate(args: argparse.Namespace) -> int:
     return 0
 
 
-def _finish(result, args, *, points, source, mesh_path, report_path, preview_path) -> int:
-    """Write the mesh, report and preview that were asked for; print the summary."""
+def _finish(result, args, *, points, source, mesh_path, report_paths, preview_path) -> int:
+    """Write the mesh, reports (JSON or HTML, by suffix) and preview; print the summary."""
     from . import io
+    from .htmlreport import write_html_report
     from .report import format_report, reconstruction_report
 
     io.write_mesh(mesh_path, result.mesh, binary=not getattr(args, "ascii", False))
     report = reconstruction_report(result, source=source, points=points)
-    if report_path is not None:
-        io.write_json(report_path, report)
+    for path in report_paths:
+        if path.suffix.lower() in HTML_SUFFIXES:
+            write_html_report(path, result, points=points, source=source, report=report)
+        else:
+            io.write_json(path, report)
     if preview_path is not None:
-        from .viz import preview
+        from .viz import RenderError, preview
 
-        preview(result.mesh, preview_path, title=Path(source).name)
+        try:
+            preview(result.mesh, preview_path, title=Path(source).name)
+        except RenderError as error:
+            if args.command != "demo":
+                raise
+            print(f"zeroset: no preview picture: {error}", file=sys.stderr)
     if not args.quiet:
         print(format_report(report))
         print(f"mesh        written to {mesh_path}")

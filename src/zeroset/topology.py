@@ -116,10 +116,8 @@ def boundary_loops(faces: np.ndarray) -> list[np.ndarray]:
     :func:`split_nonmanifold_vertices`), so every boundary vertex starts one boundary edge.
     """
     half = half_edges(faces)
-    _, inverse, counts = np.unique(
-        np.sort(half, axis=1), axis=0, return_inverse=True, return_counts=True
-    )
-    border = half[counts[inverse.reshape(-1)] == 1]
+    edge_of_half, counts = edge_ids(faces, int(faces.max(initial=-1)) + 1)
+    border = half[counts[edge_of_half] == 1]
     if border.shape[0] == 0:
         return []
     order = np.argsort(border[:, 0], kind="stable")

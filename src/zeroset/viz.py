@@ -1,85 +1,339 @@
-"""Preview pictures of meshes, drawn with Matplotlib (imported when called)."""
+"""Off-screen pictures of meshes and points, rendered with OpenGL (ModernGL, headless).
+
+No display is needed: the context is a standalone one, through EGL where there is no window
+system (Mesa's software rasteriser renders a million triangles in well under a second).
+"""
 
 from __future__ import annotations
 
 import os
+from functools import cache
 from pathlib import Path
 
 import numpy as np
 
-from .errors import InputError
+from ._validate import as_points
+from .errors import ZerosetError
 from .io import atomic_target
+from .topology import boundary_loops
 from .types import Mesh
 
-__all__ = ["preview"]
+__all__ = ["RenderError", "distance_colours", "preview", "render", "vertex_distances"]
+
+#: (elevation, azimuth) in degrees of the two views side by side.
+VIEWS = ((25.0, -60.0), (70.0, 30.0))
+#: At most this many points are drawn; more are drawn from a seeded random subset.
+MAX_POINTS = 500_000
+_SUPERSAMPLE = 2
+_BACKGROUND = (1.0, 1.0, 1.0)
+_FRONT, _BACK = (0.35, 0.55, 0.85), (0.85, 0.55, 0.35)  # outside blue, inside orange
+_POINT, _BOUNDARY, _NORMAL = (0.15, 0.15, 0.15), (0.85, 0.05, 0.05), (0.1, 0.6, 0.2)
+
+_SURFACE_SHADERS = (
+    """
+    #version 330
+    uniform mat4 mvp;
+    in vec3 position;
+    in vec3 normal;
+    in vec3 colour;
+    out vec3 v_normal;
+    out vec3 v_colour;
+    void main() {
+        gl_Position = mvp * vec4(position, 1.0);
+        v_normal = normal;
+        v_colour = colour;
+    }
+    """,
+    """
+    #version 330
+    uniform vec3 light;
+    uniform vec3 back;
+    uniform bool tint_back;
+    in vec3 v_normal;
+    in vec3 v_colour;
+    out vec4 colour;
+    void main() {
+        vec3 n = normalize(v_normal);
+        vec3 base = v_colour;
+        if (!gl_FrontFacing) {
+            n = -n;
+            if (tint_back) base = back;
+        }
+        float diffuse = max(dot(n, light), 0.0);
+        colour = vec4(base * (0.3 + 0.7 * diffuse), 1.0);
+    }
+    """,
+)
+_FLAT_SHADERS = (
+    """
+    #version 330
+    uniform mat4 mvp;
+    uniform float size;
+    in vec3 position;
+    void main() {
+        gl_Position = mvp * vec4(position, 1.0);
+        gl_PointSize = size;
+    }
+    """,
+    """
+    #version 330
+    uniform vec3 tint;
+    out vec4 colour;
+    void main() { colour = vec4(tint, 1.0); }
+    """,
+)
 
 
-def preview(
+class RenderError(ZerosetError, RuntimeError):
+    """No OpenGL context could be created on this machine."""
+
+
+def render(
     mesh: Mesh,
-    path: str | os.PathLike,
     *,
-    title: str | None = None,
-    max_faces: int = 40_000,
+    points=None,
+    normals=None,
+    boundaries: bool = True,
+    colours=None,
+    width: int = 1200,
+    height: int = 600,
+    views=VIEWS,
     rng=0,
-) -> Path:
-    """Draw `mesh` shaded from two viewpoints and save it as a PNG.
+) -> np.ndarray:
+    """Render a mesh, shaded, from several views side by side.
+
+    Faces seen from outside (counter-clockwise) are blue and faces seen from inside orange,
+    so a wrongly oriented patch shows at a glance; `colours` replaces the outside colour.
+
+    Parameters
+    ----------
+    mesh : Mesh
+    points : (N, 3) array_like of float, optional
+        Drawn as dots (at most `MAX_POINTS`, a seeded random subset beyond).
+    normals : tuple of two (K, 3) array_like of float, optional
+        Origins and unit directions, drawn as short green lines.
+    boundaries : bool
+        Draw the boundary edges in red.
+    colours : (M, 3) array_like of float in [0, 1], optional
+        Per-vertex colour, e.g. ``distance_colours(vertex_distances(mesh, points))``.
+    width, height : int
+        Picture size in pixels.
+    views : sequence of (elevation, azimuth) in degrees
+        One panel per view, left to right.
+    rng : numpy.random.Generator or int or None
+        Chooses the points drawn when there are too many.
+
+    Returns
+    -------
+    (height, width, 3) uint8
+        The picture, top row first.
+
+    Raises
+    ------
+    RenderError
+        When no OpenGL context can be created (on Linux without a display, Mesa's EGL
+        libraries are needed: ``apt-get install libegl1 libgl1-mesa-dri``).
+    """
+    import moderngl
+
+    ctx = _context()
+    centre, radius = _bounding_sphere(mesh.vertices if mesh.n_vertices else as_points(points))
+    scale = 1.0 / radius  # draw in a unit frame: float32 keeps full precision far from 0
+    vertices = ((mesh.vertices - centre) * scale).astype(np.float32)
+    surface = ctx.program(vertex_shader=_SURFACE_SHADERS[0], fragment_shader=_SURFACE_SHADERS[1])
+    flat = ctx.program(vertex_shader=_FLAT_SHADERS[0], fragment_shader=_FLAT_SHADERS[1])
+    base = np.broadcast_to(np.asarray(_FRONT, np.float32), vertices.shape)
+    if colours is not None:
+        base = np.asarray(colours, dtype=np.float32).reshape(vertices.shape)
+    data = np.hstack([vertices, _vertex_normals(mesh).astype(np.float32), base])
+    surface_vao = ctx.vertex_array(
+        surface,
+        [(ctx.buffer(data.tobytes()), "3f 3f 3f", "position", "normal", "colour")],
+        index_buffer=ctx.buffer(mesh.faces.astype(np.uint32).tobytes()),
+    )
+    layers = []
+    if points is not None:
+        points = as_points(points)
+        if points.shape[0] > MAX_POINTS:
+            keep = np.random.default_rng(rng).choice(points.shape[0], MAX_POINTS, replace=False)
+            points = points[keep]
+        layers.append((moderngl.POINTS, (points - centre) * scale, _POINT))
+    if boundaries:
+        edges = [np.c_[loop, np.roll(loop, -1)] for loop in boundary_loops(mesh.faces)]
+        if edges:
+            ends = mesh.vertices[np.concatenate(edges)].reshape(-1, 3)
+            layers.append((moderngl.LINES, (ends - centre) * scale, _BOUNDARY))
+    if normals is not None:
+        origins, directions = as_points(normals[0], "origins"), as_points(normals[1], "normals")
+        tips = origins + directions * (0.03 * radius)
+        ends = np.stack([origins, tips], axis=1).reshape(-1, 3)
+        layers.append((moderngl.LINES, (ends - centre) * scale, _NORMAL))
+
+    ss = _SUPERSAMPLE
+    size = (width * ss, height * ss)
+    fbo = ctx.simple_framebuffer(size)
+    fbo.use()
+    fbo.clear(*_BACKGROUND, 1.0, depth=1.0)
+    ctx.enable(moderngl.DEPTH_TEST | moderngl.PROGRAM_POINT_SIZE)
+    panel = size[0] // len(views)
+    for index, (elevation, azimuth) in enumerate(views):
+        ctx.viewport = (index * panel, 0, panel, size[1])
+        mvp, eye = _camera(elevation, azimuth, panel / size[1])
+        surface["mvp"].write(mvp.T.astype(np.float32).tobytes())
+        surface["light"].value = tuple(eye)
+        surface["back"].value = _BACK
+        surface["tint_back"].value = colours is None
+        ctx.polygon_offset = 1.0, 1.0  # lines and points drawn on the surface stay visible
+        surface_vao.render(moderngl.TRIANGLES)
+        ctx.polygon_offset = 0.0, 0.0
+        flat["mvp"].write(mvp.T.astype(np.float32).tobytes())
+        flat["size"].value = float(ss)
+        for mode, positions, tint in layers:
+            flat["tint"].value = tint
+            buffer = ctx.buffer(positions.astype(np.float32).tobytes())
+            ctx.vertex_array(flat, [(buffer, "3f", "position")]).render(mode)
+    picture = np.frombuffer(fbo.read(components=3), dtype=np.uint8).reshape(size[1], size[0], 3)
+    fbo.release()
+    picture = picture[::-1].reshape(height, ss, width, ss, 3).mean(axis=(1, 3))
+    return np.round(picture).astype(np.uint8)
+
+
+def preview(mesh: Mesh, path: str | os.PathLike, *, title: str | None = None, **options) -> Path:
+    """Render `mesh` (see :func:`render`, which takes the same options) and write a PNG.
 
     Parameters
     ----------
     mesh : Mesh
     path : str or os.PathLike
-        The picture to write (atomically).
+        The picture to write, atomically.
     title : str, optional
-    max_faces : int
-        Larger meshes are drawn from a random subset of this many faces.
-    rng : numpy.random.Generator or int or None
-        Chooses that subset.
+        A line of text at the top; by default the vertex and triangle counts.
 
     Returns
     -------
     pathlib.Path
     """
-    import matplotlib
-
-    matplotlib.use("Agg", force=False)
-    import matplotlib.pyplot as plt
-    from mpl_toolkits.mplot3d.art3d import Poly3DCollection
+    from PIL import Image, ImageDraw
 
     target = Path(path)
-    if not target.parent.is_dir():
-        raise InputError(f"{target}: directory {target.parent} does not exist")
-    faces = mesh.faces
-    if faces.shape[0] > max_faces:
-        faces = faces[
-            np.sort(np.random.default_rng(rng).choice(faces.shape[0], max_faces, replace=False))
-        ]
-    triangles = mesh.vertices[faces]
-    normals = np.cross(triangles[:, 1] - triangles[:, 0], triangles[:, 2] - triangles[:, 0])
-    normals /= np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-300)
-    lo, hi = mesh.vertices.min(axis=0), mesh.vertices.max(axis=0)
-    centre, half = (lo + hi) / 2.0, max(float((hi - lo).max()) / 2.0, 1e-12)
-
-    figure = plt.figure(figsize=(10, 5), dpi=110)
-    for column, (elevation, azimuth) in enumerate(((25, -60), (70, 30))):
-        axes = figure.add_subplot(1, 2, column + 1, projection="3d")
-        light = _view_direction(elevation + 20, azimuth - 30)
-        shade = 0.25 + 0.75 * np.abs(normals @ light)  # two-sided: inside of a pipe is lit too
-        colours = np.c_[0.35 * shade, 0.55 * shade, 0.85 * shade, np.ones_like(shade)]
-        axes.add_collection3d(Poly3DCollection(triangles, facecolors=colours, linewidths=0))
-        for setter, c in zip((axes.set_xlim, axes.set_ylim, axes.set_zlim), centre, strict=True):
-            setter(c - half, c + half)
-        axes.set_box_aspect((1, 1, 1), zoom=1.35)
-        axes.view_init(elev=elevation, azim=azimuth)
-        axes.set_axis_off()
-    figure.suptitle(title or f"{mesh.n_vertices:,} vertices, {mesh.n_faces:,} triangles")
-    figure.tight_layout()
-    with atomic_target(target) as temp:
-        figure.savefig(temp, format="png")
-    plt.close(figure)
+    picture = Image.fromarray(render(mesh, **options))
+    text = title or f"{mesh.n_vertices:,} vertices, {mesh.n_faces:,} triangles"
+    ImageDraw.Draw(picture).text((10, 8), text, fill=(0, 0, 0))
+    with atomic_target(target) as temporary:
+        picture.save(temporary, format="PNG")
     return target
 
 
-def _view_direction(elevation: float, azimuth: float) -> np.ndarray:
-    """Unit vector towards a viewer at the given angles in degrees."""
+def vertex_distances(mesh: Mesh, points) -> np.ndarray:
+    """Return how far the data lie from the mesh around each vertex.
+
+    Every point is projected onto the mesh exactly (see
+    :func:`zeroset.evaluate.closest_points_on_mesh`); a face gets the mean distance of the
+    points that land on it, a vertex the mean over its faces that got any. A vertex with no
+    point on any of its faces gets NaN.
+
+    Parameters
+    ----------
+    mesh : Mesh
+    points : (N, 3) array_like of float
+
+    Returns
+    -------
+    (M,) float64, in data units
+    """
+    from .evaluate import closest_points_on_mesh
+
+    _, face, distance = closest_points_on_mesh(points, mesh)
+    hits = np.bincount(face, minlength=mesh.n_faces)
+    face_mean = np.bincount(face, distance, mesh.n_faces) / np.maximum(hits, 1)
+    corners = mesh.faces.reshape(-1)
+    covered = np.repeat(hits > 0, 3)
+    total = np.bincount(corners[covered], np.repeat(face_mean, 3)[covered], mesh.n_vertices)
+    count = np.bincount(corners[covered], minlength=mesh.n_vertices)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(count > 0, total / count, np.nan)
+
+
+def distance_colours(distances, *, limit: float | None = None) -> np.ndarray:
+    """Map distances to colours (viridis: dark near, yellow far; grey where NaN).
+
+    Parameters
+    ----------
+    distances : (M,) array_like of float
+        E.g. from :func:`vertex_distances`.
+    limit : float, optional
+        Distance shown in the brightest colour; by default the 95th percentile.
+
+    Returns
+    -------
+    (M, 3) float64 in [0, 1]
+    """
+    from matplotlib import colormaps
+
+    distances = np.asarray(distances, dtype=np.float64)
+    known = np.isfinite(distances)
+    if limit is None:
+        limit = float(np.percentile(distances[known], 95)) if known.any() else 1.0
+    colours = colormaps["viridis"](np.clip(np.nan_to_num(distances) / max(limit, 1e-300), 0, 1))
+    colours[~known] = 0.6
+    return colours[:, :3]
+
+
+@cache
+def _context():
+    """One standalone OpenGL context per process: the platform's own, else EGL."""
+    import moderngl
+
+    errors = []
+    for backend in (None, "egl"):
+        try:
+            options = {} if backend is None else {"backend": backend}
+            return moderngl.create_standalone_context(require=330, **options)
+        except Exception as error:  # each backend fails in its own way
+            errors.append(f"{backend or 'default'}: {error}")
+    raise RenderError(
+        "no OpenGL context for rendering (" + "; ".join(errors) + "); on Linux without a "
+        "display install Mesa's EGL: apt-get install libegl1 libgl1-mesa-dri"
+    )
+
+
+def _bounding_sphere(vertices: np.ndarray) -> tuple[np.ndarray, float]:
+    """Centre and radius of the bounding box's sphere."""
+    lo, hi = vertices.min(axis=0), vertices.max(axis=0)
+    return (lo + hi) / 2.0, max(float(np.linalg.norm(hi - lo)) / 2.0, 1e-12)
+
+
+def _vertex_normals(mesh: Mesh) -> np.ndarray:
+    """(M, 3) area-weighted vertex normals (zero where a vertex has no face)."""
+    tri = mesh.vertices[mesh.faces]
+    face_normals = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    corners = mesh.faces.reshape(-1)
+    weights = np.repeat(face_normals, 3, axis=0)
+    normals = np.stack(
+        [np.bincount(corners, weights[:, i], mesh.n_vertices) for i in range(3)], axis=1
+    )
+    return normals / np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-300)
+
+
+def _camera(elevation: float, azimuth: float, aspect: float) -> tuple[np.ndarray, np.ndarray]:
+    """(4, 4) projection x view matrix looking at the unit sphere, and the unit eye direction."""
     e, a = np.radians(elevation), np.radians(azimuth)
-    return np.array([np.cos(e) * np.cos(a), np.cos(e) * np.sin(a), np.sin(e)])
+    eye = np.array([np.cos(e) * np.cos(a), np.cos(e) * np.sin(a), np.sin(e)])
+    up = np.array([0.0, 0.0, 1.0]) if abs(eye[2]) < 0.99 else np.array([0.0, 1.0, 0.0])
+    forward = -eye
+    right = np.cross(forward, up)
+    right /= np.linalg.norm(right)
+    true_up = np.cross(right, forward)
+    distance = 1.0 / np.sin(np.radians(15.0))  # a 30 degree field of view fits the sphere
+    view = np.eye(4)
+    view[:3, :3] = np.stack([right, true_up, -forward])
+    view[:3, 3] = -view[:3, :3] @ (eye * distance)
+    near, far = distance - 1.5, distance + 1.5
+    f = 1.0 / np.tan(np.radians(15.0))
+    projection = np.zeros((4, 4))
+    projection[0, 0] = f / max(aspect, 1.0)
+    projection[1, 1] = f * min(aspect, 1.0)
+    projection[2, 2] = (far + near) / (near - far)
+    projection[2, 3] = 2.0 * far * near / (near - far)
+    projection[3, 2] = -1.0
+    return projection @ view, eye
