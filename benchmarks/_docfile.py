@@ -13,7 +13,7 @@ import os
 import tempfile
 from pathlib import Path
 
-SECTIONS = ("phase1", "phase2", "cubes", "peers")
+SECTIONS = ("phase1", "phase2", "cubes", "report", "peers")
 
 INTRO = """# Benchmarks
 
@@ -28,6 +28,9 @@ and keeps the rest (this introduction included):
   points (`benchmarks/bench_phase2.py`).
 - [Method of Cubes](#method-of-cubes-against-marching-cubes): the two contourings of phase 1
   side by side, and phase 2 started from each (`benchmarks/bench_cubes.py`).
+- [Pictures and HTML reports](#pictures-and-html-reports-of-large-meshes): time to draw a
+  picture and write a report of up to 1M triangles, the report's size and its load time in a
+  browser (`benchmarks/bench_report.py`).
 - [Peers](#peers-zeroset-against-open3d-pymeshlab-and-vtk): zeroset against the tools a user
   would otherwise pick (Open3D, PyMeshLab, VTK) on synthetic pipes with exact ground truth and
   on real scans (`benchmarks/bench_peers.py`, needs the `bench` extra).

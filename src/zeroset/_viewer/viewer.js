@@ -41,8 +41,8 @@
   const camera = new THREE.PerspectiveCamera(30, 1, 1e-3, 1e3);
   camera.up.set(0, 0, 1);
   scene.add(camera);
-  scene.add(new THREE.HemisphereLight(0xffffff, 0x555555, 1.2));
-  const headlight = new THREE.DirectionalLight(0xffffff, 1.8);
+  scene.add(new THREE.HemisphereLight(0xffffff, 0x444444, 0.9));
+  const headlight = new THREE.DirectionalLight(0xffffff, 1.3);
   headlight.position.set(0.3, 0.5, 1);
   camera.add(headlight);
 
