@@ -241,7 +241,7 @@ def test_demo_writes_its_folder(tmp_path, capsys):
     report = json.loads((out / "report.json").read_text())
     assert report["stats"]["boundary_loops"] == 2
     page = (out / "report.html").read_text()
-    assert '"boundary_loops": 2' in page and "window.THREE" in page
+    assert '"boundary_loops": 2' in page and "var THREE=" in page
     printed = capsys.readouterr().out
     assert "outliers dropped" in printed and "triangles" in printed and str(out) in printed
 

@@ -1,6 +1,6 @@
-// The parts of three.js that the report's viewer (src/zeroset/_viewer/viewer.js) uses,
-// exposed as window.THREE.
-import {
+// The parts of three.js that the report's viewer (src/zeroset/_viewer/viewer.js) uses; the
+// build makes them the global THREE.
+export {
   BackSide,
   BufferAttribute,
   BufferGeometry,
@@ -20,26 +20,4 @@ import {
   Vector3,
   WebGLRenderer,
 } from "three";
-import { OrbitControls } from "three/examples/jsm/controls/OrbitControls.js";
-
-window.THREE = {
-  BackSide,
-  BufferAttribute,
-  BufferGeometry,
-  Color,
-  DirectionalLight,
-  FrontSide,
-  Group,
-  HemisphereLight,
-  LineBasicMaterial,
-  LineSegments,
-  Mesh,
-  MeshPhongMaterial,
-  OrbitControls,
-  PerspectiveCamera,
-  Points,
-  PointsMaterial,
-  Scene,
-  Vector3,
-  WebGLRenderer,
-};
+export { OrbitControls } from "three/examples/jsm/controls/OrbitControls.js";

@@ -1,10 +1,10 @@
 // The viewer of a zeroset HTML report: reads the JSON and the packed arrays embedded in the
-// page, draws them with three.js (window.THREE, embedded before this script) and writes the
+// page, draws them with three.js (the global THREE, embedded before this script) and writes the
 // numbers beside them. Nothing is fetched from the network.
 "use strict";
 
 (async () => {
-  const THREE = window.THREE;
+  const THREE = window.THREE; // three.js and OrbitControls, from tools/viewer
   const report = JSON.parse(document.getElementById("zeroset-report").textContent);
   const packed = JSON.parse(document.getElementById("zeroset-layers").textContent);
   const TYPES = { float32: Float32Array, uint32: Uint32Array };
