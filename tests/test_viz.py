@@ -5,7 +5,7 @@ import os
 import numpy as np
 import pytest
 
-from zeroset import reconstruct
+from zeroset import InputError, reconstruct
 from zeroset.synthetic import sample_cylinder
 from zeroset.types import Mesh
 from zeroset.viz import RenderError, distance_colours, preview, render, vertex_distances
@@ -102,3 +102,8 @@ def test_vertex_distances_are_the_heights_of_the_points():
     colours = distance_colours(np.array([0.0, 1.0, np.nan]), limit=1.0)
     assert colours.shape == (3, 3) and np.all(colours[2] == 0.6)
     assert colours[1, :2].sum() > colours[0, :2].sum()  # far is bright (yellow)
+
+
+def test_an_empty_mesh_is_an_input_error():
+    with pytest.raises(InputError, match="no faces"):
+        render(Mesh(vertices=np.zeros((0, 3)), faces=np.zeros((0, 3), dtype=np.int64)))

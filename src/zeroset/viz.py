@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from ._validate import as_points
-from .errors import ZerosetError
+from .errors import InputError, ZerosetError
 from .io import atomic_target
 from .topology import boundary_loops
 from .types import Mesh
@@ -130,14 +130,18 @@ def render(
 
     Raises
     ------
+    InputError
+        If the mesh has no faces.
     RenderError
         When no OpenGL context can be created (on Linux without a display, Mesa's EGL
         libraries are needed: ``apt-get install libegl1 libgl1-mesa-dri``).
     """
     import moderngl
 
+    if mesh.n_faces == 0:
+        raise InputError("nothing to render: the mesh has no faces")
     ctx = _context()
-    centre, radius = _bounding_sphere(mesh.vertices if mesh.n_vertices else as_points(points))
+    centre, radius = _bounding_sphere(mesh.vertices)
     scale = 1.0 / radius  # draw in a unit frame: float32 keeps full precision far from 0
     vertices = ((mesh.vertices - centre) * scale).astype(np.float32)
     surface = ctx.program(vertex_shader=_SURFACE_SHADERS[0], fragment_shader=_SURFACE_SHADERS[1])
