@@ -6,8 +6,8 @@ Run by hand from the repository root (needs chromium and chromium-driver, as the
 
 For each size, a noisy open pipe is reconstructed with a cube size that gives about that many
 triangles; then `zeroset.viz.preview` (with the points drawn) and
-`zeroset.htmlreport.write_html_report` (with every point for the distances) are timed, and
-the report is opened in headless Chromium with the network off and timed until its viewer
+`zeroset.htmlreport.write_html_report` (distances from the 200,000 embedded points) are timed,
+and the report is opened in headless Chromium with the network off and timed until its viewer
 says it is ready (decoded, built and drawn once). The section between
 ``<!-- report:begin -->`` and ``<!-- report:end -->`` of docs/benchmarks.md is replaced.
 """
@@ -113,8 +113,9 @@ def render(rows: list[dict], machine: dict, command: str) -> str:
         f"noise={CYLINDER['noise']})`, cube size chosen for the triangle count). Picture: "
         "`zeroset.viz.preview(mesh, path, points=points)`, two 1200 × 600 views, every point "
         "given (at most 500,000 drawn). Report: `write_html_report(path, result, points=points)` "
-        "(200,000 points embedded; distances measured from every point). Load: headless Chromium "
-        "(software WebGL, SwiftShader), network off, from navigation until the viewer has "
+        "(200,000 points embedded, the distances colouring the mesh measured from them). "
+        "Load: headless Chromium (software WebGL, SwiftShader), network off, from navigation "
+        "until the viewer has "
         f"decoded, built and drawn everything. Medians of {REPEAT}.",
         "",
         *reproduce_lines(command, machine),

@@ -82,3 +82,10 @@ def test_small_components_are_removed():
     assert dropped == 1
     assert cleaned.n_faces == big.n_faces and cleaned.n_vertices == big.n_vertices
     assert topology.face_components(cleaned.faces, cleaned.n_vertices)[0] == 1
+
+
+def test_boundary_edges_run_as_in_their_faces(tetra_mesh):
+    assert topology.boundary_edges(tetra_mesh.faces).shape == (0, 2)
+    open_faces = tetra_mesh.faces[:3]  # the tetrahedron without its last face
+    edges = topology.boundary_edges(open_faces)
+    assert sorted(map(tuple, edges.tolist())) == sorted([(2, 1), (1, 3), (3, 2)])

@@ -62,7 +62,8 @@ def marching_cubes(field: DistanceField) -> Mesh:
     crossings face by face so that neighbouring cubes always agree (no cracks); Hoppe et
     al. 1992, §3.5 (cubes with undefined corners are skipped).
     """
-    cube_keys, _, config = _crossed_cubes(field)
+    keys = _lattice.encode(field.vertices_ijk)
+    cube_keys, _, config = _crossed_cubes(field, keys)
     table, counts = case_table()
     per_cube = counts[config]
     cube_of_tri = np.repeat(np.arange(cube_keys.size), per_cube)
@@ -72,7 +73,7 @@ def marching_cubes(field: DistanceField) -> Mesh:
         cube_keys[cube_of_tri][:, None] + _lattice.offset_keys(CORNER_OFFSETS)[EDGE_CORNER[edges]]
     )
     unique_edges, faces = np.unique(_edge_keys(lower, EDGE_AXIS[edges]), return_inverse=True)
-    vertices = _edge_points(unique_edges, field)
+    vertices = _edge_points(unique_edges, keys, field)
     return Mesh(vertices=vertices, faces=faces.reshape(-1, 3).astype(np.int64))
 
 
@@ -128,7 +129,7 @@ def method_of_cubes(field: DistanceField, points, centroids, normals) -> Mesh:
             f"points, centroids and normals must have one row each per point; got "
             f"{points.shape}, {centroids.shape} and {normals.shape}"
         )
-    cube_keys, values, config = _crossed_cubes(field)
+    cube_keys, values, config = _crossed_cubes(field, _lattice.encode(field.vertices_ijk))
     if cube_keys.size == 0:
         return Mesh(vertices=np.zeros((0, 3)), faces=np.zeros((0, 3), dtype=np.int64))
     patch, n_patches = patch_table()
@@ -168,12 +169,14 @@ def method_of_cubes(field: DistanceField, points, centroids, normals) -> Mesh:
     return _triangulate(vertices, quads, reference, meeting, crossing[first])
 
 
-def _crossed_cubes(field: DistanceField) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _crossed_cubes(
+    field: DistanceField, keys: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Cubes that are contoured: all corners defined, a sign change, no jump.
 
-    Returns their sorted (C,) keys, (C, 8) corner values and (C,) sign configurations.
+    `keys` (V,) are the field's grid vertex keys. Returns the cubes' sorted (C,) keys, (C, 8)
+    corner values and (C,) sign configurations.
     """
-    keys = _lattice.encode(field.vertices_ijk)
     corner_keys = keys[:, None] + _lattice.offset_keys(CORNER_OFFSETS)[None, :]
     slot = np.minimum(np.searchsorted(keys, corner_keys), keys.size - 1)
     values = np.where(keys[slot] == corner_keys, field.values[slot], np.nan)
@@ -191,9 +194,8 @@ def _edge_keys(lower_keys: np.ndarray, axis: np.ndarray) -> np.ndarray:
     return (lower_keys << 2) | axis
 
 
-def _edge_points(edge_keys: np.ndarray, field: DistanceField) -> np.ndarray:
-    """Linearly interpolated zero crossing (E, 3) on each lattice edge."""
-    keys = _lattice.encode(field.vertices_ijk)
+def _edge_points(edge_keys: np.ndarray, keys: np.ndarray, field: DistanceField) -> np.ndarray:
+    """Linearly interpolated zero crossing (E, 3) on each lattice edge; `keys` as the field's."""
     lower, axis = edge_keys >> 2, edge_keys & 3
     upper = lower + _lattice.offset_keys(np.eye(3, dtype=np.int64))[axis]
     f0 = field.values[np.searchsorted(keys, lower)]
@@ -287,8 +289,9 @@ def _triangulate(vertices, quads, reference, meeting, crossing) -> Mesh:
     keys, inverse = np.unique(
         np.stack([sides, meeting], axis=2).reshape(-1, 2), axis=0, return_inverse=True
     )
-    twice = np.bincount(np.unique(keys[:, 0], return_inverse=True)[1]) > 1
-    split = twice[np.unique(keys[:, 0], return_inverse=True)[1]][inverse].reshape(quads.shape)
+    side_of_key = np.unique(keys[:, 0], return_inverse=True)[1]
+    twice = np.bincount(side_of_key) > 1  # sides crossed by two different segments
+    split = twice[side_of_key][inverse].reshape(quads.shape)
     plain = ~split.any(axis=1)
     faces = [_split_quads(vertices, quads[plain], reference[plain])]
     if not plain.all():

@@ -22,7 +22,7 @@ from .errors import InputError
 from .io import atomic_target
 from .pipeline import Reconstruction
 from .report import reconstruction_report
-from .topology import boundary_loops
+from .topology import boundary_edges
 from .types import Mesh
 from .viz import vertex_distances
 
@@ -114,11 +114,10 @@ def write_html_report(
 
 def _mesh_layers(mesh: Mesh, centre: np.ndarray, points) -> dict:
     """A mesh's vertices, faces, boundary edges and (with points) per-vertex distances."""
-    edges = [np.c_[loop, np.roll(loop, -1)] for loop in boundary_loops(mesh.faces)]
     layer = {
         "vertices": _array(mesh.vertices - centre, np.float32),
         "faces": _array(mesh.faces, np.uint32),
-        "boundary": _array(np.concatenate(edges) if edges else np.zeros((0, 2)), np.uint32),
+        "boundary": _array(boundary_edges(mesh.faces), np.uint32),
     }
     if points is not None:
         layer["distance"] = _array(vertex_distances(mesh, points), np.float32)

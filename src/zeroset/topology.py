@@ -12,6 +12,7 @@ __all__ = [
     "corner_fans",
     "edge_ids",
     "half_edges",
+    "boundary_edges",
     "boundary_loops",
     "edge_face_counts",
     "edge_face_pairs",
@@ -109,15 +110,20 @@ def is_consistently_oriented(faces: np.ndarray) -> bool:
     return np.unique(half, axis=0).shape[0] == half.shape[0]
 
 
+def boundary_edges(faces: np.ndarray) -> np.ndarray:
+    """Return the (B, 2) int64 boundary edges (a, b), directed as in their one face."""
+    half = half_edges(faces)
+    edge_of_half, counts = edge_ids(faces, int(faces.max(initial=-1)) + 1)
+    return half[counts[edge_of_half] == 1]
+
+
 def boundary_loops(faces: np.ndarray) -> list[np.ndarray]:
     """Return the closed boundary loops, each an array of vertex indices in face order.
 
     A boundary edge belongs to one face only. The mesh must be vertex-manifold (see
     :func:`split_nonmanifold_vertices`), so every boundary vertex starts one boundary edge.
     """
-    half = half_edges(faces)
-    edge_of_half, counts = edge_ids(faces, int(faces.max(initial=-1)) + 1)
-    border = half[counts[edge_of_half] == 1]
+    border = boundary_edges(faces)
     if border.shape[0] == 0:
         return []
     order = np.argsort(border[:, 0], kind="stable")

@@ -15,7 +15,7 @@ import numpy as np
 from ._validate import as_points
 from .errors import InputError, ZerosetError
 from .io import atomic_target
-from .topology import boundary_loops
+from .topology import boundary_edges
 from .types import Mesh
 
 __all__ = ["RenderError", "distance_colours", "preview", "render", "vertex_distances"]
@@ -144,18 +144,10 @@ def render(
     centre, radius = _bounding_sphere(mesh.vertices)
     scale = 1.0 / radius  # draw in a unit frame: float32 keeps full precision far from 0
     vertices = ((mesh.vertices - centre) * scale).astype(np.float32)
-    surface = ctx.program(vertex_shader=_SURFACE_SHADERS[0], fragment_shader=_SURFACE_SHADERS[1])
-    flat = ctx.program(vertex_shader=_FLAT_SHADERS[0], fragment_shader=_FLAT_SHADERS[1])
     base = np.broadcast_to(np.asarray(_FRONT, np.float32), vertices.shape)
     if colours is not None:
         base = np.asarray(colours, dtype=np.float32).reshape(vertices.shape)
-    data = np.hstack([vertices, _vertex_normals(mesh).astype(np.float32), base])
-    surface_vao = ctx.vertex_array(
-        surface,
-        [(ctx.buffer(data.tobytes()), "3f 3f 3f", "position", "normal", "colour")],
-        index_buffer=ctx.buffer(mesh.faces.astype(np.uint32).tobytes()),
-    )
-    layers = []
+    layers = []  # (mode, (K, 3) positions in the unit frame, colour) drawn over the surface
     if points is not None:
         points = as_points(points)
         if points.shape[0] > MAX_POINTS:
@@ -163,10 +155,8 @@ def render(
             points = points[keep]
         layers.append((moderngl.POINTS, (points - centre) * scale, _POINT))
     if boundaries:
-        edges = [np.c_[loop, np.roll(loop, -1)] for loop in boundary_loops(mesh.faces)]
-        if edges:
-            ends = mesh.vertices[np.concatenate(edges)].reshape(-1, 3)
-            layers.append((moderngl.LINES, (ends - centre) * scale, _BOUNDARY))
+        ends = mesh.vertices[boundary_edges(mesh.faces)].reshape(-1, 3)
+        layers.append((moderngl.LINES, (ends - centre) * scale, _BOUNDARY))
     if normals is not None:
         origins, directions = as_points(normals[0], "origins"), as_points(normals[1], "normals")
         tips = origins + directions * (0.03 * radius)
@@ -175,29 +165,63 @@ def render(
 
     ss = _SUPERSAMPLE
     size = (width * ss, height * ss)
-    fbo = ctx.simple_framebuffer(size)
-    fbo.use()
-    fbo.clear(*_BACKGROUND, 1.0, depth=1.0)
-    ctx.enable(moderngl.DEPTH_TEST | moderngl.PROGRAM_POINT_SIZE)
-    panel = size[0] // len(views)
-    for index, (elevation, azimuth) in enumerate(views):
-        ctx.viewport = (index * panel, 0, panel, size[1])
-        mvp, eye = _camera(elevation, azimuth, panel / size[1])
-        surface["mvp"].write(mvp.T.astype(np.float32).tobytes())
-        surface["light"].value = tuple(eye)
-        surface["back"].value = _BACK
-        surface["tint_back"].value = colours is None
-        ctx.polygon_offset = 1.0, 1.0  # lines and points drawn on the surface stay visible
-        surface_vao.render(moderngl.TRIANGLES)
-        ctx.polygon_offset = 0.0, 0.0
-        flat["mvp"].write(mvp.T.astype(np.float32).tobytes())
-        flat["size"].value = float(ss)
-        for mode, positions, tint in layers:
-            flat["tint"].value = tint
-            buffer = ctx.buffer(positions.astype(np.float32).tobytes())
-            ctx.vertex_array(flat, [(buffer, "3f", "position")]).render(mode)
-    picture = np.frombuffer(fbo.read(components=3), dtype=np.uint8).reshape(size[1], size[0], 3)
-    fbo.release()
+    made = []  # every GL object of this call, released at the end: the context lives on
+
+    def keep(resource):
+        made.append(resource)
+        return resource
+
+    try:
+        surface = keep(
+            ctx.program(vertex_shader=_SURFACE_SHADERS[0], fragment_shader=_SURFACE_SHADERS[1])
+        )
+        flat = keep(ctx.program(vertex_shader=_FLAT_SHADERS[0], fragment_shader=_FLAT_SHADERS[1]))
+        data = np.hstack([vertices, _vertex_normals(mesh).astype(np.float32), base])
+        surface_vao = keep(
+            ctx.vertex_array(
+                surface,
+                [(keep(ctx.buffer(data.tobytes())), "3f 3f 3f", "position", "normal", "colour")],
+                index_buffer=keep(ctx.buffer(mesh.faces.astype(np.uint32).tobytes())),
+            )
+        )
+        overlays = [
+            (
+                mode,
+                keep(
+                    ctx.vertex_array(
+                        flat, [(keep(ctx.buffer(p.astype(np.float32).tobytes())), "3f", "position")]
+                    )
+                ),
+                tint,
+            )
+            for mode, p, tint in layers
+            if p.shape[0]
+        ]
+        fbo = keep(ctx.simple_framebuffer(size))
+        fbo.use()
+        fbo.clear(*_BACKGROUND, 1.0, depth=1.0)
+        ctx.enable(moderngl.DEPTH_TEST | moderngl.PROGRAM_POINT_SIZE)
+        panel = size[0] // len(views)
+        for index, (elevation, azimuth) in enumerate(views):
+            ctx.viewport = (index * panel, 0, panel, size[1])
+            mvp, eye = _camera(elevation, azimuth, panel / size[1])
+            surface["mvp"].write(mvp.T.astype(np.float32).tobytes())
+            surface["light"].value = tuple(eye)
+            surface["back"].value = _BACK
+            surface["tint_back"].value = colours is None
+            ctx.polygon_offset = 1.0, 1.0  # lines and points drawn on the surface stay visible
+            surface_vao.render(moderngl.TRIANGLES)
+            ctx.polygon_offset = 0.0, 0.0
+            flat["mvp"].write(mvp.T.astype(np.float32).tobytes())
+            flat["size"].value = float(ss)
+            for mode, vao, tint in overlays:
+                flat["tint"].value = tint
+                vao.render(mode)
+        picture = np.frombuffer(fbo.read(components=3), dtype=np.uint8)
+    finally:
+        for resource in reversed(made):
+            resource.release()
+    picture = picture.reshape(size[1], size[0], 3)
     picture = picture[::-1].reshape(height, ss, width, ss, 3).mean(axis=(1, 3))
     return np.round(picture).astype(np.uint8)
 
