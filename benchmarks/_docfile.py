@@ -13,7 +13,7 @@ import os
 import tempfile
 from pathlib import Path
 
-SECTIONS = ("phase1", "phase2", "cubes", "report", "peers")
+SECTIONS = ("phase1", "phase2", "cubes", "report", "large", "peers")
 
 INTRO = """# Benchmarks
 
@@ -31,6 +31,9 @@ and keeps the rest (this introduction included):
 - [Pictures and HTML reports](#pictures-and-html-reports-of-large-meshes): time to draw a
   picture and write a report of up to 1M triangles, the report's size and its load time in a
   browser (`benchmarks/bench_report.py`).
+- [Larger than memory](#larger-than-memory-a-100m-point-laz-at-reduced-density): a
+  100M-point LAZ read in chunks and voxel-sampled while read, wall time and peak memory
+  (`benchmarks/bench_large.py`).
 - [Peers](#peers-zeroset-against-open3d-pymeshlab-and-vtk): zeroset against the tools a user
   would otherwise pick (Open3D, PyMeshLab, VTK) on synthetic pipes with exact ground truth and
   on real scans (`benchmarks/bench_peers.py`, needs the `bench` extra).

@@ -5,6 +5,7 @@ from __future__ import annotations
 import os
 import re
 import stat
+import time
 
 import numpy as np
 import plyfile
@@ -114,6 +115,28 @@ def test_read_ply_integer_points_ignore_faces_and_range_grid(tmp_path):
     cloud = zio.read_points(path)
     assert cloud.points.dtype == np.float64
     np.testing.assert_array_equal(cloud.points, points)
+
+
+def test_read_binary_ply_in_one_go(tmp_path):
+    # plyfile reads binary rows one at a time unless memory-mapped: 5 s per million rows.
+    points = np.random.default_rng(0).random((1_000_000, 3))
+    path = zio.write_points(tmp_path / "scan.ply", points)
+    start = time.perf_counter()
+    cloud = zio.read_points(path)
+    assert time.perf_counter() - start < 2.0
+    np.testing.assert_array_equal(cloud.points, points)
+
+
+def test_read_ply_checks_the_length_before_reading(tmp_path):
+    path = tmp_path / "scan.ply"
+    lists = "".join(f"property list uchar float {axis}\n" for axis in "xyz")
+    rows = "0 0 0\n0 0 0"  # two rows of empty lists, the last without its newline
+    path.write_text(f"ply\nformat ascii 1.0\nelement vertex 2\n{lists}end_header\n{rows}")
+    with pytest.raises(InputError, match="'vertex' properties x, y, z are lists, not numbers"):
+        zio.read_points(path)
+    path.write_text(f"ply\nformat ascii 1.0\nelement vertex 3\n{lists}end_header\n{rows}")
+    with pytest.raises(InputError, match="declares 3 vertex rows, at least 18 bytes, but only 12"):
+        zio.read_points(path)
 
 
 def test_read_xyz_with_spaces(tmp_path):
@@ -354,9 +377,11 @@ READ_ERRORS = [
     (
         "scan.ply",
         _ply_text(["element vertex 3", "property float x", "property float y", "property float z"]),
-        r"not a valid PLY file \(element 'vertex': row 1: .*early end-of-file",
+        "header declares 3 vertex rows, at least 18 bytes, but only 7 bytes follow it; "
+        "the file is truncated",
     ),
-    ("scan.ply", "", r"not a valid PLY file \(line 1: expected 'ply'\)"),
+    ("scan.ply", "", r"is empty \(0 bytes\)"),
+    ("scan.ply", "x y z\n1 2 3\n", "not a valid PLY file: it is text"),
     (
         "scan.ply",
         _ply_text(
@@ -382,7 +407,7 @@ READ_ERRORS = [
             ],
             rows=("0 0 0 1",),
         ),
-        "has nx but not ny, nz",
+        "has 'vertex' properties nx but not ny, nz",
     ),
     (
         "scan.ply",
@@ -401,7 +426,9 @@ READ_ERRORS = [
     ("scan.xyz", "x y z\n1\n", "line 2 has 1 column; expected at least 3"),
     ("scan.xyz", "1 2 3 4 5 6\n1 2 3\n", "line 2 has 3 columns; expected at least 6"),
     ("scan.xyz", "1 2 3\n4 five 6\n", "line 2: cannot read 'five' as a number"),
-    ("scan.xyz", b"\xff\xfe\x00\x01garbage", "not a UTF-8 text file"),
+    ("scan.xyz", b"\xff\xfe\x00\x01garbage", "it is UTF-16 text; save it as UTF-8"),
+    ("scan.xyz", b"1 2 3\n" + "4 5 6 # é\n".encode("latin-1"), "not a UTF-8 text file"),
+    ("scan.xyz", b"ply\nformat ascii 1.0\n", "it is a PLY file; rename it to .ply"),
     ("scan.npy", b"not numpy at all", "not a valid NPY or NPZ file"),
     ("scan.npy", b"\x93NUMPY\x01\x00\x76\x00{'descr'", "not a valid NPY or NPZ file"),
 ]
@@ -460,7 +487,7 @@ def test_unknown_suffixes(tmp_path):
     with pytest.raises(
         InputError,
         match=r"scan.xyz2: unknown point format '.xyz2'; "
-        r"supported: .csv, .npy, .npz, .ply, .pts",
+        r"supported: .csv, .e57, .las, .laz, .npy, .npz, .pcd, .ply, .pts",
     ):
         zio.read_points(tmp_path / "scan.xyz2")
     with pytest.raises(InputError, match="scan: has no suffix; supported"):

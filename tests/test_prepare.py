@@ -3,23 +3,86 @@ import pytest
 
 from zeroset import InputError
 from zeroset.neighbours import knn
-from zeroset.prepare import average_in_cells, crop, drop_outliers, random_sample, voxel_sample
+from zeroset.prepare import (
+    average_in_cells,
+    crop,
+    drop_outliers,
+    random_sample,
+    reduce_chunks,
+    voxel_sample,
+)
 
 
 def test_random_sample_is_seeded_and_sized():
-    a, b, c = (random_sample(1000, 0.3, rng=s) for s in (1, 1, 2))
-    assert a.size == 300 and np.unique(a).size == 300
+    a, b, c = (random_sample(10_000, 0.3, seed=s) for s in (1, 1, 2))
+    assert abs(a.size - 3000) < 4 * np.sqrt(10_000 * 0.3 * 0.7)
+    assert np.all(np.diff(a) > 0)
     np.testing.assert_array_equal(a, b)
     assert not np.array_equal(a, c)
     with pytest.raises(InputError, match="sample fraction"):
         random_sample(10, 0.0)
 
 
-def test_voxel_sample_keeps_one_point_per_voxel(rng):
+def test_voxel_sample_keeps_the_point_nearest_each_voxel_centroid(rng):
     points = rng.uniform(0, 1, (5000, 3))
     kept = voxel_sample(points, 0.25)
-    cells = np.floor((points[kept] - points.min(axis=0)) / 0.25).astype(int)
+    cells = np.floor(points / 0.25).astype(int)
     assert kept.size == np.unique(cells, axis=0).shape[0] == 64
+    for cell in np.unique(cells, axis=0)[:8]:
+        members = np.flatnonzero((cells == cell).all(axis=1))
+        spread = np.linalg.norm(points[members] - points[members].mean(axis=0), axis=1)
+        assert members[np.argmin(spread)] in kept
+
+
+def _chunked(columns, size):
+    """A chunk factory cutting `columns` into pieces of `size` rows."""
+    n = len(columns["points"])
+    return lambda: ({k: v[i : i + size] for k, v in columns.items()} for i in range(0, n, size))
+
+
+@pytest.mark.parametrize("size", [1, 97, 1000, 10_000])
+def test_reduce_chunks_does_not_depend_on_the_chunk_size(rng, size):
+    columns = {
+        "points": rng.uniform(-1, 1, (3000, 3)) + [1e6, 2e6, 0],
+        "intensity": rng.uniform(0, 100, 3000),
+    }
+    options = dict(crop_box=(1e6 - 0.8, 2e6 - 1, -1, 1e6 + 1, 2e6 + 0.9, 1), sample=0.6,
+                   voxel_size=0.2, seed=5)  # fmt: skip
+    whole = reduce_chunks(lambda: [columns], **options)
+    parts = reduce_chunks(_chunked(columns, size), **options)
+    np.testing.assert_array_equal(parts.rows, whole.rows)
+    for name in columns:
+        np.testing.assert_array_equal(parts.columns[name], columns[name][whole.rows])
+    assert parts.counts == whole.counts
+    counts = whole.counts
+    assert counts["input_points"] == 3000
+    assert counts["input_points"] - counts["cropped"] - counts["sampled_out"] - counts[
+        "voxel_merged"
+    ] == whole.rows.size
+
+
+def test_reduce_chunks_steps_compose(rng):
+    points = rng.uniform(0, 1, (4000, 3))
+    box = (0.1, 0.1, 0.1, 0.9, 0.9, 0.9)
+    cropped = reduce_chunks(lambda: [{"points": points}], crop_box=box)
+    np.testing.assert_array_equal(cropped.rows, np.flatnonzero(crop(points, box[:3], box[3:])))
+    sampled = reduce_chunks(lambda: [{"points": points}], crop_box=box, sample=0.5, seed=1)
+    drawn = np.random.default_rng(1).random(4000) < 0.5
+    np.testing.assert_array_equal(sampled.rows, np.intersect1d(cropped.rows, np.flatnonzero(drawn)))
+    both = reduce_chunks(lambda: [{"points": points}], crop_box=box, sample=0.5, voxel_size=0.3,
+                         seed=1)  # fmt: skip
+    subset = sampled.rows[voxel_sample(points[sampled.rows], 0.3)]
+    np.testing.assert_array_equal(both.rows, subset)
+
+
+def test_reduce_chunks_errors():
+    nan = np.array([[0.0, 0, 0], [np.nan, 0, 0]])
+    with pytest.raises(InputError, match="first at row 3"):
+        reduce_chunks(_chunked({"points": np.vstack([np.zeros((2, 3)), nan])}, 2))
+    with pytest.raises(InputError, match="too small for the cloud's extent"):
+        voxel_sample(np.array([[0.0, 0, 0], [1e3, 0, 0]]), 1e-3)
+    with pytest.raises(InputError, match="voxel_size"):
+        voxel_sample(np.zeros((2, 3)), 0.0)
 
 
 def test_crop_keeps_the_box(rng):

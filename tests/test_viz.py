@@ -4,11 +4,19 @@ import os
 
 import numpy as np
 import pytest
+from matplotlib import colormaps
 
 from zeroset import InputError, reconstruct
 from zeroset.synthetic import sample_cylinder
 from zeroset.types import Mesh
-from zeroset.viz import RenderError, distance_colours, preview, render, vertex_distances
+from zeroset.viz import (
+    RenderError,
+    distance_colours,
+    intensity_colours,
+    preview,
+    render,
+    vertex_distances,
+)
 
 
 def _no_opengl() -> str | None:
@@ -71,6 +79,21 @@ def test_boundaries_points_and_colours_change_the_picture(pipe_mesh):
         return ((g > r + 20) & (g > b)).mean()
 
     assert greenish(plain) < 0.001 and greenish(tinted) > 0.05
+
+
+def test_points_take_their_intensity_colours(pipe_mesh):
+    sample, mesh = pipe_mesh
+    upper = sample.points[:, 2] > 0.5  # strong returns on the upper half of the pipe
+    colours = intensity_colours(np.where(upper, 1000.0, 10.0))
+    np.testing.assert_allclose(colours[upper][0], colormaps["plasma"](1.0)[:3])
+    np.testing.assert_allclose(colours[~upper][0], colormaps["plasma"](0.0)[:3])
+    picture = render(mesh, points=sample.points, point_colours=colours, boundaries=False,
+                     width=400, height=200)  # fmt: skip
+    r, g, b = (picture[..., i].astype(int) for i in range(3))
+    yellow = (r > 180) & (g > 180) & (b < 120)  # plasma's top; the shading has no yellow
+    assert yellow.mean() > 0.01
+    grey = render(mesh, points=sample.points, boundaries=False, width=400, height=200)
+    assert ((grey[..., 0] > 180) & (grey[..., 1] > 180) & (grey[..., 2] < 120)).mean() == 0
 
 
 def test_far_coordinates_render_like_near_ones(pipe_mesh):

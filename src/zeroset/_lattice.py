@@ -6,18 +6,20 @@ import numpy as np
 
 from .errors import ReconstructionError
 
-__all__ = ["decode", "encode", "offset_keys"]
+__all__ = ["LIMIT", "decode", "encode", "offset_keys"]
 
 _BITS = 20  # 3 x 20 bits, so an edge key (key << 2 | axis) fits in int64
 _BIAS = 1 << (_BITS - 1)
 _MASK = (1 << _BITS) - 1
+#: Largest |index| a key can hold, with room for the offsets of a cube's corners and edges.
+LIMIT = _BIAS - 64
 
 
 def encode(ijk: np.ndarray) -> np.ndarray:
     """Return (N,) int64 keys of (N, 3) int64 lattice indices; key order is (i, j, k) order."""
-    if ijk.size and (ijk.min() < 64 - _BIAS or ijk.max() >= _BIAS - 64):
+    if ijk.size and (ijk.min() < -LIMIT or ijk.max() >= LIMIT):
         raise ReconstructionError(
-            f"the grid would need indices up to {int(np.abs(ijk).max())} (at most {_BIAS - 64}); "
+            f"the grid would need indices up to {int(np.abs(ijk).max())} (at most {LIMIT}); "
             "the cube size is too small for the cloud's extent: increase cube_size"
         )
     shifted = ijk + _BIAS

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numbers
+import warnings
 
 import numpy as np
 
@@ -14,10 +15,14 @@ __all__ = ["as_faces", "as_points", "as_vector3", "positive", "require_rng"]
 def as_points(values, name: str = "points", *, min_rows: int = 1) -> np.ndarray:
     """Return `values` as a new C-contiguous (N, 3) float64 array of finite rows."""
     try:
-        array = np.array(values, dtype=np.float64, order="C", copy=True)
-    except (TypeError, ValueError) as exc:
+        with warnings.catch_warnings():
+            # Complex values would lose their imaginary parts with only a warning.
+            warnings.simplefilter("error", np.exceptions.ComplexWarning)
+            array = np.array(values, dtype=np.float64, order="C", copy=True)
+    except (TypeError, ValueError, np.exceptions.ComplexWarning) as exc:
+        dtype = f" of {values.dtype}" if isinstance(values, np.ndarray) else ""
         raise TypeError(
-            f"{name} must be an array of real numbers; got {type(values).__name__}"
+            f"{name} must be an array of real numbers; got {type(values).__name__}{dtype}"
         ) from exc
     if array.ndim != 2 or array.shape[1] != 3:
         raise InputError(f"{name} must have shape (N, 3); got {array.shape}")

@@ -11,29 +11,42 @@ __all__ = ["main"]
 
 DEMO_POINTS = 40_000
 HTML_SUFFIXES = (".html", ".htm")
+POINTS_HELP = "points: .ply .las .laz .pcd .e57 .xyz .txt .csv .pts .npy .npz"
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Run the command line; return the exit status (0 ok, 1 no surface, 2 bad input)."""
+    """Run the command line; return the exit status (0 ok, 1 no surface, 2 bad input).
+
+    Every failure prints one line, ``zeroset: error: PATH: what is wrong``, and ``--debug``
+    shows the traceback instead. Messages from the pipeline, which knows no file names, get
+    the path of the command's ``input``. Any other exception is a bug, reported as such
+    with exit status 1.
+    """
     parser = _parser()
     args = parser.parse_args(argv)
     if args.command is None:
         parser.print_help()
         return 2
-    from .errors import ReconstructionError, ZerosetError
+    from .errors import InputError, ReconstructionError, ZerosetError
 
     try:
         return args.run(args)
-    except ReconstructionError as exc:
+    except Exception as exc:
         if args.debug:
             raise
-        print(f"zeroset: error: {exc}", file=sys.stderr)
-        return 1
-    except (ZerosetError, ValueError, TypeError, OSError) as exc:
-        if args.debug:
-            raise
-        print(f"zeroset: error: {exc}", file=sys.stderr)
-        return 2
+        message = " ".join(str(exc).split()) or type(exc).__name__
+        expected = (ZerosetError, ValueError, TypeError, OSError, MemoryError)
+        if isinstance(exc, MemoryError):
+            message = f"out of memory ({message})"
+        elif not isinstance(exc, expected):
+            message = f"internal error, please report it: {type(exc).__name__}: {message}"
+        named = tuple(f"{value}: " for value in vars(args).values() if isinstance(value, Path))
+        source = getattr(args, "input", None)
+        about_input = isinstance(exc, (InputError, ReconstructionError, MemoryError))
+        if source is not None and about_input and not message.startswith(named):
+            message = f"{source}: {message}"
+        print(f"zeroset: error: {message}", file=sys.stderr)
+        return 1 if isinstance(exc, ReconstructionError) or not isinstance(exc, expected) else 2
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -47,14 +60,18 @@ def _parser() -> argparse.ArgumentParser:
     common = argparse.ArgumentParser(add_help=False)
     common.add_argument("--quiet", action="store_true", help="print nothing but errors")
     common.add_argument("--debug", action="store_true", help="show tracebacks")
+    writes = argparse.ArgumentParser(add_help=False)
+    writes.add_argument(
+        "--force", action="store_true", help="replace output files that exist (never an input)"
+    )
 
     rec = commands.add_parser(
         "reconstruct",
-        parents=[common],
+        parents=[common, writes],
         help="reconstruct a mesh from points",
         description="Reconstruct a triangle mesh from a point cloud file.",
     )
-    rec.add_argument("input", type=Path, help="points: .ply .xyz .txt .csv .pts .npy .npz")
+    rec.add_argument("input", type=Path, help=POINTS_HELP)
     rec.add_argument("-o", "--output", type=Path, required=True, help="mesh: .ply .obj .stl .off")
     rec.add_argument(
         "--report",
@@ -73,14 +90,14 @@ def _parser() -> argparse.ArgumentParser:
 
     opt = commands.add_parser(
         "optimize",
-        parents=[common],
+        parents=[common, writes],
         help="optimise a mesh against points (phase 2)",
         description="Optimise a triangle mesh against the points it approximates (Hoppe "
         "1993): edge collapse, split and swap and vertex fitting lower the energy "
         "distance^2 + c_rep x vertices + kappa x edge lengths^2.",
     )
     opt.add_argument("mesh", type=Path, help="starting mesh: .ply .obj .stl .off")
-    opt.add_argument("points", type=Path, help="points: .ply .xyz .txt .csv .pts .npy .npz")
+    opt.add_argument("points", type=Path, help=POINTS_HELP)
     opt.add_argument("-o", "--output", type=Path, required=True, help="mesh: .ply .obj .stl .off")
     opt.add_argument("--report", type=Path, help="write parameters, energies and moves as JSON")
     opt.add_argument("--ascii", action="store_true", help="write PLY as text instead of binary")
@@ -91,7 +108,7 @@ def _parser() -> argparse.ArgumentParser:
 
     ren = commands.add_parser(
         "render",
-        parents=[common],
+        parents=[common, writes],
         help="draw a mesh as a PNG picture",
         description="Draw a mesh, shaded (outside blue, inside orange), from two views, "
         "off-screen, with its boundary edges in red and optionally the points, their normals "
@@ -99,11 +116,14 @@ def _parser() -> argparse.ArgumentParser:
     )
     ren.add_argument("mesh", type=Path, help="mesh: .ply .obj .stl .off")
     ren.add_argument(
-        "points", type=Path, nargs="?", help="points to draw: .ply .xyz .txt .csv .pts .npy .npz"
+        "points", type=Path, nargs="?", help=POINTS_HELP.replace("points", "points to draw", 1)
     )
     ren.add_argument("-o", "--output", type=Path, required=True, help="picture: .png")
     ren.add_argument("--hide-points", action="store_true", help="use POINTS but do not draw them")
     ren.add_argument("--normals", action="store_true", help="draw the normals POINTS carry")
+    ren.add_argument(
+        "--intensity", action="store_true", help="colour the points by the intensity they carry"
+    )
     ren.add_argument(
         "--distance", action="store_true", help="colour the mesh by how far POINTS lie from it"
     )
@@ -125,7 +145,7 @@ def _parser() -> argparse.ArgumentParser:
 
     synth = commands.add_parser(
         "synth",
-        parents=[common],
+        parents=[common, writes],
         help="write a synthetic cloud and its true surface",
         description="Write seeded synthetic points (PLY, with normals and, for scans, sensor "
         "positions) and the true surface beside them as <stem>-truth.ply.",
@@ -160,7 +180,7 @@ def _parser() -> argparse.ArgumentParser:
 
     evaluate = commands.add_parser(
         "evaluate",
-        parents=[common],
+        parents=[common, writes],
         help="measure a mesh against a reference and/or points",
         description="Report a mesh's quality (manifoldness, boundary loops, triangle shape) "
         "and, when given, its distance to a reference surface (Chamfer, Hausdorff, F-score, "
@@ -261,18 +281,32 @@ def _config_overrides(args: argparse.Namespace) -> dict:
 
 
 def _run_reconstruct(args: argparse.Namespace) -> int:
+    import time
+
     from . import io
+    from .errors import InputError
     from .pipeline import reconstruct
 
-    _check_outputs(args.output, args.report, args.preview)
-    cloud = io.read_points(args.input)
-    result = reconstruct(
-        cloud.points,
-        viewpoints=cloud.viewpoints,
-        optimize=args.optimize,
-        progress=not args.quiet,
-        **_config_overrides(args),
+    _check_outputs(
+        [args.output, args.report, args.preview], [args.input], force=args.force, mesh=args.output
     )
+    overrides = _config_overrides(args)
+    reduce = {}
+    if not args.optimize:  # phase 2 takes every point the crop keeps, so it reads them all
+        reduce = {name: overrides.pop(name, None) for name in ("crop", "sample", "voxel_size")}
+    start = time.perf_counter()
+    cloud = io.read_points(args.input, **reduce, seed=overrides.get("seed", 0))
+    reading = {"seconds": time.perf_counter() - start, **cloud.reduction}
+    try:
+        result = reconstruct(
+            cloud.points,
+            viewpoints=cloud.viewpoints,
+            optimize=args.optimize,
+            progress=not args.quiet,
+            **overrides,
+        )
+    except InputError as exc:  # about the points, so about the file
+        raise InputError(f"{args.input}: {exc}") from exc
     return _finish(
         result,
         args,
@@ -281,6 +315,7 @@ def _run_reconstruct(args: argparse.Namespace) -> int:
         mesh_path=args.output,
         report_paths=[args.report] if args.report else [],
         preview_path=args.preview,
+        reading=reading,
     )
 
 
@@ -289,7 +324,9 @@ def _run_optimize(args: argparse.Namespace) -> int:
     from .optimization import optimize_mesh
     from .report import optimization_lines, optimization_report
 
-    _check_outputs(args.output, args.report)
+    _check_outputs(
+        [args.output, args.report], [args.mesh, args.points], force=args.force, mesh=args.output
+    )
     mesh = io.read_mesh(args.mesh)
     cloud = io.read_points(args.points)
     result = optimize_mesh(
@@ -311,18 +348,43 @@ def _run_optimize(args: argparse.Namespace) -> int:
     return 0
 
 
-def _check_outputs(mesh: Path | None, *others: Path | None) -> None:
-    """Refuse an output mesh of unknown format, or any output whose folder is missing."""
+def _check_outputs(
+    outputs: list[Path | None], inputs: list[Path | None], *, force: bool, mesh: Path | None = None
+) -> None:
+    """Refuse, before any work, outputs that cannot be written or would lose data.
+
+    An output may not be an input (not even with --force), a folder, in a missing folder,
+    named twice, or an existing file unless `force`; `mesh` must have a mesh suffix.
+    """
+    import os
+
     from . import io
     from .errors import InputError
 
     if mesh is not None and mesh.suffix.lower() not in io.MESH_FORMATS:
-        raise InputError(
-            f"{mesh}: unknown mesh format {mesh.suffix!r}; supported: {', '.join(io.MESH_FORMATS)}"
-        )
-    for target in (mesh, *others):
-        if target is not None and not target.resolve().parent.is_dir():
+        found = f"unknown mesh format {mesh.suffix!r}" if mesh.suffix else "has no suffix"
+        raise InputError(f"{mesh}: {found}; supported: {', '.join(io.MESH_FORMATS)}")
+    written: list[Path] = []
+    for target in filter(None, outputs):
+        resolved = target.resolve()
+        if resolved.parent.is_file():
+            raise InputError(f"{target}: {target.parent} is a file, not a directory")
+        if not resolved.parent.is_dir():
             raise InputError(f"{target}: directory {target.parent} does not exist")
+        if not os.access(resolved.parent, os.W_OK | os.X_OK):
+            raise InputError(f"{target}: cannot write in {target.parent} (permission denied)")
+        if resolved.is_dir():
+            raise InputError(f"{target}: is a directory; give a file name")
+        for source in filter(None, inputs):
+            if resolved == source.resolve() or (
+                resolved.exists() and source.exists() and os.path.samefile(resolved, source)
+            ):
+                raise InputError(f"{target}: is the input file {source}; write elsewhere")
+        if resolved in written:
+            raise InputError(f"{target}: named for two outputs")
+        written.append(resolved)
+        if resolved.exists() and not force:
+            raise InputError(f"{target}: exists; add --force to replace it")
 
 
 def _run_render(args: argparse.Namespace) -> int:
@@ -330,11 +392,11 @@ def _run_render(args: argparse.Namespace) -> int:
 
     from . import io
     from .errors import InputError
-    from .viz import distance_colours, preview, vertex_distances
+    from .viz import distance_colours, intensity_colours, preview, vertex_distances
 
     if args.output.suffix.lower() != ".png":
         raise InputError(f"{args.output}: the picture must be a .png file")
-    _check_outputs(None, args.output)
+    _check_outputs([args.output], [args.mesh, args.points], force=args.force)
     try:
         width, height = (int(part) for part in args.size.lower().split("x"))
     except ValueError:
@@ -343,10 +405,12 @@ def _run_render(args: argparse.Namespace) -> int:
         raise InputError(f"--size must be between 16 and 8192 pixels each way; got {args.size}")
     mesh = io.read_mesh(args.mesh)
     cloud = io.read_points(args.points) if args.points else None
-    if cloud is None and (args.distance or args.normals or args.hide_points):
-        raise InputError("--distance, --normals and --hide-points need a POINTS file")
+    if cloud is None and (args.distance or args.normals or args.hide_points or args.intensity):
+        raise InputError("--distance, --normals, --intensity and --hide-points need a POINTS file")
     if args.normals and cloud.normals is None:
         raise InputError(f"{args.points}: the file carries no normals to draw")
+    if args.intensity and cloud.intensity is None:
+        raise InputError(f"{args.points}: the file carries no intensity to colour by")
     title, colours = args.mesh.name, None
     if args.distance:
         distances = vertex_distances(mesh, cloud.points)
@@ -358,6 +422,7 @@ def _run_render(args: argparse.Namespace) -> int:
         args.output,
         title=title,
         points=None if cloud is None or args.hide_points else cloud.points,
+        point_colours=intensity_colours(cloud.intensity) if args.intensity else None,
         normals=(cloud.points, cloud.normals) if args.normals else None,
         boundaries=not args.no_boundaries,
         colours=colours,
@@ -374,7 +439,7 @@ def _run_demo(args: argparse.Namespace) -> int:
     from .pipeline import reconstruct
     from .synthetic import sample_cylinder
 
-    args.out.mkdir(parents=True, exist_ok=True)
+    args.out.mkdir(parents=True, exist_ok=True)  # the demo replaces its own files there
     sample = sample_cylinder(args.points, radius=0.25, length=1.0, noise=0.002, rng=args.seed)
     points_path = io.write_points(args.out / "pipe-points.ply", sample.points)
     result = reconstruct(sample.points, progress=not args.quiet, seed=args.seed)
@@ -403,6 +468,8 @@ def _run_demo(args: argparse.Namespace) -> int:
 def _run_synth(args: argparse.Namespace) -> int:
     from . import synthetic
 
+    truth = args.output.with_name(f"{args.output.stem}-truth.ply")
+    _check_outputs([args.output, truth], [], force=args.force)
     generator = getattr(synthetic, SYNTH_KINDS[args.kind])
     options = {"rng": args.seed, "outliers": args.outliers}
     if args.radius is not None:
@@ -427,6 +494,7 @@ def _run_evaluate(args: argparse.Namespace) -> int:
     from . import io
     from .evaluate import evaluate, format_report
 
+    _check_outputs([args.json], [args.mesh, args.reference, args.points], force=args.force)
     mesh = io.read_mesh(args.mesh)
     reference = io.read_mesh(args.reference) if args.reference else None
     points = io.read_points(args.points).points if args.points else None
@@ -446,14 +514,19 @@ def _run_evaluate(args: argparse.Namespace) -> int:
     return 0
 
 
-def _finish(result, args, *, points, source, mesh_path, report_paths, preview_path) -> int:
+def _finish(
+    result, args, *, points, source, mesh_path, report_paths, preview_path, reading=None
+) -> int:
     """Write the mesh, reports (JSON or HTML, by suffix) and preview; print the summary."""
+    import resource
+
     from . import io
     from .htmlreport import write_html_report
     from .report import format_report, reconstruction_report
 
     io.write_mesh(mesh_path, result.mesh, binary=not getattr(args, "ascii", False))
-    report = reconstruction_report(result, source=source, points=points)
+    report = reconstruction_report(result, source=source, points=points, reading=reading)
+    report["peak_mib"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     for path in report_paths:
         if path.suffix.lower() in HTML_SUFFIXES:
             write_html_report(path, result, points=points, source=source, report=report)

@@ -38,8 +38,10 @@ class ReconstructionConfig:
     averaging_cell: float | None = _opt(
         None, "average the points in cubic cells of this size before fitting planes (0: never)"
     )
-    sample: float | None = _opt(None, "keep this random fraction of the points, in (0, 1]")
-    voxel_size: float | None = _opt(None, "keep one point per voxel of this size")
+    sample: float | None = _opt(None, "keep each point with this probability, in (0, 1]")
+    voxel_size: float | None = _opt(
+        None, "keep the point nearest each voxel's centroid, voxels of this size", flag="voxel"
+    )
     crop: tuple[float, float, float, float, float, float] | None = _opt(
         None, "keep points inside the box xmin,ymin,zmin,xmax,ymax,zmax", nargs=6
     )

@@ -18,7 +18,7 @@ from .normals import tangent_planes
 from .optimization import OptimizationResult, optimize_mesh
 from .orientation import orient_normals
 from .parameters import estimate_parameters
-from .prepare import average_in_cells, crop, drop_outliers, random_sample, voxel_sample
+from .prepare import average_in_cells, crop, drop_outliers, reduce_chunks
 from .repair import fill_small_holes, remove_small_components, split_nonmanifold_vertices
 from .types import DistanceField, Mesh, Orientation, Parameters, TangentPlanes
 
@@ -35,6 +35,10 @@ STAGES = (
     "contour",
 )
 OPTIMIZE_STAGE = "optimize"
+#: Largest coordinate magnitude and smallest extent accepted: squared distances between
+#: points then stay far from float64's overflow (1.8e308) and underflow (2.2e-308).
+MAX_COORDINATE = 1e100
+MIN_EXTENT = 1e-100
 
 
 @dataclass(frozen=True, eq=False)
@@ -141,13 +145,14 @@ def reconstruct(
     try:
         with stages.stage("prepare"):
             rows, cropped = _prepare(points, config, stats)
-            offset = (points[rows].min(axis=0) + points[rows].max(axis=0)) / 2.0
-            local = points[rows] - offset
+            kept = points[rows]
+            _check_spread(kept)
+            offset = (kept.min(axis=0) + kept.max(axis=0)) / 2.0
+            local = kept - offset
             if viewpoints is not None:
                 viewpoints = viewpoints[rows] - offset
             elif config.viewpoint is not None:
                 viewpoints = np.asarray(config.viewpoint, dtype=np.float64) - offset
-            _check_spread(local)
         with stages.stage("parameters"):
             parameters = estimate_parameters(
                 local,
@@ -266,35 +271,53 @@ def _prepare(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Row indices of `points` kept by crop, random and voxel sampling, in spatial order;
     and those kept by the crop alone (phase 2's points)."""
-    rows = np.arange(points.shape[0])
+    reduction = reduce_chunks(
+        lambda: [{"points": points}],
+        crop_box=config.crop,
+        sample=config.sample,
+        voxel_size=config.voxel_size,
+        seed=config.seed,
+    )
+    stats.update({k: v for k, v in reduction.counts.items() if k != "input_points"})
+    rows = reduction.rows
+    cropped = np.arange(points.shape[0])
     if config.crop is not None:
-        rows = rows[crop(points, config.crop[:3], config.crop[3:])]
-        stats["cropped"] = points.shape[0] - rows.size
-    cropped = rows
-    if config.sample is not None:
-        before = rows.size
-        rows = rows[random_sample(rows.size, config.sample, rng=config.seed)]
-        stats["sampled_out"] = before - rows.size
-    if config.voxel_size is not None:
-        before = rows.size
-        rows = rows[voxel_sample(points[rows], config.voxel_size)]
-        stats["voxel_merged"] = before - rows.size
+        cropped = np.flatnonzero(crop(points, config.crop[:3], config.crop[3:]))
     needed = config.k_max
     if rows.size < needed:
+        left = (
+            f" of {points.shape[0]} left after cropping and sampling"
+            if rows.size < points.shape[0]
+            else ""
+        )
         raise InputError(
-            f"{rows.size} points left after preparation; a neighbourhood needs at least {needed}"
+            f"only {rows.size} point{'' if rows.size == 1 else 's'}{left}; "
+            f"a neighbourhood needs at least k_max={needed}"
         )
     return rows[spatial_order(points[rows])], cropped
 
 
-def _check_spread(local: np.ndarray) -> None:
-    """Reject clouds whose points coincide or lie on one line: no surface can pass through them."""
-    step = max(1, local.shape[0] // 100_000)
-    sample = local[::step]
-    singular = np.linalg.svd(sample - sample.mean(axis=0), compute_uv=False)
-    if singular[0] == 0.0:
+def _check_spread(points: np.ndarray) -> None:
+    """Reject clouds no surface can come from: coincident or collinear points, or a scale
+    whose squared distances float64 cannot hold."""
+    largest = float(np.abs(points).max())
+    if largest > MAX_COORDINATE:
+        raise InputError(
+            f"coordinates reach {largest:.3g}; rescale the points so that they stay "
+            f"within {MAX_COORDINATE:g} of the origin"
+        )
+    extent = float(np.ptp(points, axis=0).max())
+    if extent == 0.0:
         raise InputError("all points coincide; no surface can be reconstructed")
-    if singular[1] <= 1e-9 * singular[0]:
+    if extent < MIN_EXTENT:
+        raise InputError(
+            f"the points span only {extent:.3g}; rescale them to span at least {MIN_EXTENT:g}"
+        )
+    sample = points[:: max(1, points.shape[0] // 100_000)]
+    singular = np.linalg.svd(sample - sample.mean(axis=0), compute_uv=False)
+    # Across a line the points spread less than their spacing along it; for exactly
+    # collinear points singular[1] is rounding error, about 1e-16 singular[0].
+    if singular[1] * points.shape[0] <= singular[0]:
         raise InputError("the points are collinear; no surface can be reconstructed")
 
 

@@ -19,7 +19,12 @@ FIT_SAMPLES = 200_000
 
 
 def reconstruction_report(
-    result: Reconstruction, *, source: str | None = None, points=None, rng=0
+    result: Reconstruction,
+    *,
+    source: str | None = None,
+    points=None,
+    reading: dict | None = None,
+    rng=0,
 ) -> dict:
     """Return a JSON-ready summary of `result`: parameters and why, counts, timings, fit.
 
@@ -31,6 +36,9 @@ def reconstruction_report(
     points : (N, 3) array_like of float, optional
         The input points; when given, the report measures their distance to the mesh (on a
         seeded sample of at most ``FIT_SAMPLES``).
+    reading : dict, optional
+        How the points were read: ``seconds``, and the counts of a reduction while reading
+        (`zeroset.types.PointCloud.reduction`) when one ran.
     rng : numpy.random.Generator or int or None
         Chooses that sample.
 
@@ -38,11 +46,15 @@ def reconstruction_report(
     -------
     dict
         Keys ``source``, ``parameters`` (values and ``notes``), ``config``, ``stats``,
-        ``timings`` (seconds per stage), ``total_seconds``, with phase 2 ``optimization``
+        ``timings`` (seconds per stage, ``read`` first when `reading` is given),
+        ``total_seconds``, with `reading` ``reading`` (its counts), with phase 2 ``optimization``
         (see :func:`optimization_report`) and, with `points`, ``fit`` (see
         :func:`zeroset.evaluate.compare_to_points`).
     """
     params = result.parameters
+    timings = dict(result.timings)
+    if reading is not None:
+        timings = {"read": reading["seconds"], **timings}
     report = {
         "source": source,
         "parameters": {
@@ -56,9 +68,11 @@ def reconstruction_report(
         },
         "config": asdict(result.config),
         "stats": dict(result.stats),
-        "timings": {name: round(seconds, 4) for name, seconds in result.timings.items()},
-        "total_seconds": round(sum(result.timings.values()), 4),
+        "timings": {name: round(seconds, 4) for name, seconds in timings.items()},
+        "total_seconds": round(sum(timings.values()), 4),
     }
+    if reading is not None:
+        report["reading"] = {name: v for name, v in reading.items() if name != "seconds"}
     if result.optimization is not None:
         report["optimization"] = optimization_report(result.optimization)
     if points is not None:
@@ -102,6 +116,9 @@ def optimization_lines(report: dict) -> list[str]:
     ]
 
 
+#: How the report names the points each reduction step removed.
+_REMOVED = {"cropped": "cropped", "sampled_out": "sampled out", "voxel_merged": "merged by voxels"}
+
 #: How the report names each contouring method.
 CONTOUR_NAMES = {"marching": "marching cubes", "cubes": "Method of Cubes"}
 
@@ -109,17 +126,10 @@ CONTOUR_NAMES = {"marching": "marching cubes", "cubes": "Method of Cubes"}
 def format_report(report: dict) -> str:
     """Render a report from :func:`reconstruction_report` as a few aligned lines of text."""
     stats = report["stats"]
-    removed = [
-        f"{stats[key]:,} {label}"
-        for key, label in (
-            ("cropped", "cropped"),
-            ("sampled_out", "sampled out"),
-            ("voxel_merged", "merged by voxels"),
-        )
-        if key in stats
-    ]
+    removed = _removed(stats)
     cells = stats["phase1_points"] + stats["outliers"]
     lines = [
+        *_reading_lines(report.get("reading")),
         f"points      {stats['input_points']:,} in"
         + "".join(f"; {item}" for item in removed)
         + (f"; averaged into {cells:,} cells" if report["parameters"]["averaging_cell"] else "")
@@ -139,9 +149,23 @@ def format_report(report: dict) -> str:
         *_fit_lines(report.get("fit")),
         "seconds     "
         + ", ".join(f"{name} {sec:.2f}" for name, sec in report["timings"].items())
-        + f"; total {report['total_seconds']:.2f}",
+        + f"; total {report['total_seconds']:.2f}"
+        + (f"; peak memory {report['peak_mib']:,.0f} MiB" if "peak_mib" in report else ""),
     ]
     return "\n".join(lines)
+
+
+def _reading_lines(reading: dict | None) -> list[str]:
+    """One line on a reduction while reading, when one ran."""
+    if not reading:
+        return []
+    removed = "; ".join(_removed(reading))
+    return [f"reading     {reading['input_points']:,} points in the file; {removed} while reading"]
+
+
+def _removed(counts: dict) -> list[str]:
+    """Phrases like "120 cropped" for the reduction steps in `counts`."""
+    return [f"{counts[key]:,} {label}" for key, label in _REMOVED.items() if key in counts]
 
 
 def _fit_lines(fit: dict | None) -> list[str]:

@@ -40,14 +40,22 @@ class PointCloud(_Frozen):
     normals : (N, 3) float64 or None
     viewpoints : (N, 3) float64 or None
         Sensor position for every point, when the file carries one.
+    intensity : (N,) float64 or None
+        Return strength of every point, in the file's units, when it carries one.
     source : str or None
         The file the cloud was read from.
+    reduction : dict
+        When the file was cropped or sub-sampled while it was read: the points it held
+        (``input_points``) and how many each step removed (``cropped``, ``sampled_out``,
+        ``voxel_merged``); else empty.
     """
 
     points: np.ndarray
     normals: np.ndarray | None = None
     viewpoints: np.ndarray | None = None
+    intensity: np.ndarray | None = None
     source: str | None = None
+    reduction: dict = field(default_factory=dict)
 
 
 @dataclass(frozen=True, eq=False)

@@ -18,7 +18,14 @@ from .io import atomic_target
 from .topology import boundary_edges
 from .types import Mesh
 
-__all__ = ["RenderError", "distance_colours", "preview", "render", "vertex_distances"]
+__all__ = [
+    "RenderError",
+    "distance_colours",
+    "intensity_colours",
+    "preview",
+    "render",
+    "vertex_distances",
+]
 
 #: (elevation, azimuth) in degrees of the two views side by side.
 VIEWS = ((25.0, -60.0), (70.0, 30.0))
@@ -70,16 +77,19 @@ _FLAT_SHADERS = (
     uniform mat4 mvp;
     uniform float size;
     in vec3 position;
+    in vec3 colour;
+    out vec3 v_colour;
     void main() {
         gl_Position = mvp * vec4(position, 1.0);
         gl_PointSize = size;
+        v_colour = colour;
     }
     """,
     """
     #version 330
-    uniform vec3 tint;
+    in vec3 v_colour;
     out vec4 colour;
-    void main() { colour = vec4(tint, 1.0); }
+    void main() { colour = vec4(v_colour, 1.0); }
     """,
 )
 
@@ -92,6 +102,7 @@ def render(
     mesh: Mesh,
     *,
     points=None,
+    point_colours=None,
     normals=None,
     boundaries: bool = True,
     colours=None,
@@ -110,6 +121,8 @@ def render(
     mesh : Mesh
     points : (N, 3) array_like of float, optional
         Drawn as dots (at most `MAX_POINTS`, a seeded random subset beyond).
+    point_colours : (N, 3) array_like of float in [0, 1], optional
+        A colour per point, e.g. ``intensity_colours(cloud.intensity)``; dark grey if None.
     normals : tuple of two (K, 3) array_like of float, optional
         Origins and unit directions, drawn as short green lines.
     boundaries : bool
@@ -147,13 +160,17 @@ def render(
     base = np.broadcast_to(np.asarray(_FRONT, np.float32), vertices.shape)
     if colours is not None:
         base = np.asarray(colours, dtype=np.float32).reshape(vertices.shape)
-    layers = []  # (mode, (K, 3) positions in the unit frame, colour) drawn over the surface
+    layers = []  # (mode, (K, 3) positions in the unit frame, colour(s)) drawn over the surface
     if points is not None:
         points = as_points(points)
+        tint = _POINT
+        if point_colours is not None:
+            tint = np.asarray(point_colours, dtype=np.float64).reshape(points.shape)
         if points.shape[0] > MAX_POINTS:
             keep = np.random.default_rng(rng).choice(points.shape[0], MAX_POINTS, replace=False)
             points = points[keep]
-        layers.append((moderngl.POINTS, (points - centre) * scale, _POINT))
+            tint = tint if point_colours is None else tint[keep]
+        layers.append((moderngl.POINTS, (points - centre) * scale, tint))
     if boundaries:
         ends = mesh.vertices[boundary_edges(mesh.faces)].reshape(-1, 3)
         layers.append((moderngl.LINES, (ends - centre) * scale, _BOUNDARY))
@@ -185,15 +202,8 @@ def render(
             )
         )
         overlays = [
-            (
-                mode,
-                keep(
-                    ctx.vertex_array(
-                        flat, [(keep(ctx.buffer(p.astype(np.float32).tobytes())), "3f", "position")]
-                    )
-                ),
-                tint,
-            )
+            (mode, keep(ctx.vertex_array(flat, [(keep(ctx.buffer(_coloured(p, tint))), "3f 3f",
+                                                 "position", "colour")])))  # fmt: skip
             for mode, p, tint in layers
             if p.shape[0]
         ]
@@ -214,8 +224,7 @@ def render(
             ctx.polygon_offset = 0.0, 0.0
             flat["mvp"].write(mvp.T.astype(np.float32).tobytes())
             flat["size"].value = float(ss)
-            for mode, vao, tint in overlays:
-                flat["tint"].value = tint
+            for mode, vao in overlays:
                 vao.render(mode)
         picture = np.frombuffer(fbo.read(components=3), dtype=np.uint8)
     finally:
@@ -224,6 +233,12 @@ def render(
     picture = picture.reshape(size[1], size[0], 3)
     picture = picture[::-1].reshape(height, ss, width, ss, 3).mean(axis=(1, 3))
     return np.round(picture).astype(np.uint8)
+
+
+def _coloured(positions: np.ndarray, tint) -> bytes:
+    """Interleaved float32 (position, colour) rows; `tint` one colour or one per row."""
+    colours = np.broadcast_to(np.asarray(tint, dtype=np.float64), positions.shape)
+    return np.hstack([positions, colours]).astype(np.float32).tobytes()
 
 
 def preview(mesh: Mesh, path: str | os.PathLike, *, title: str | None = None, **options) -> Path:
@@ -305,6 +320,29 @@ def distance_colours(distances, *, limit: float | None = None) -> np.ndarray:
     colours = colormaps["viridis"](np.clip(np.nan_to_num(distances) / max(limit, 1e-300), 0, 1))
     colours[~known] = 0.6
     return colours[:, :3]
+
+
+def intensity_colours(intensity) -> np.ndarray:
+    """Map return intensities to colours (plasma: weak dark blue, strong yellow).
+
+    The 2nd to 98th percentiles span the colour map, so a few saturated returns do not
+    wash out the rest.
+
+    Parameters
+    ----------
+    intensity : (N,) array_like of float
+        E.g. ``zeroset.io.read_points(path).intensity``.
+
+    Returns
+    -------
+    (N, 3) float64 in [0, 1]
+    """
+    from matplotlib import colormaps
+
+    intensity = np.asarray(intensity, dtype=np.float64)
+    low, high = np.percentile(intensity, [2, 98]) if intensity.size else (0.0, 1.0)
+    scaled = np.clip((intensity - low) / max(high - low, 1e-300), 0.0, 1.0)
+    return colormaps["plasma"](scaled)[:, :3]
 
 
 @cache

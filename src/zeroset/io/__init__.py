@@ -18,8 +18,9 @@ import numpy as np
 
 from .._validate import as_faces, as_points
 from ..errors import InputError
+from ..prepare import CHUNK_POINTS, reduce_chunks
 from ..types import Mesh, PointCloud
-from . import _mesh, _numpy, _ply, _text
+from . import _e57, _las, _mesh, _numpy, _pcd, _ply, _text
 from ._atomic import atomic_target
 
 __all__ = [
@@ -35,13 +36,19 @@ __all__ = [
 
 _POINT_READERS = {
     ".csv": _text.read_points,
+    ".e57": _e57.read_points,
+    ".las": _las.read_points,
+    ".laz": _las.read_points,
     ".npy": _numpy.read_points,
     ".npz": _numpy.read_points,
+    ".pcd": _pcd.read_points,
     ".ply": _ply.read_points,
     ".pts": _text.read_points,
     ".txt": _text.read_points,
     ".xyz": _text.read_points,
 }
+# Readers that yield a file a few million points at a time; the others read it whole.
+_POINT_CHUNKS = {".las": _las.iter_chunks, ".laz": _las.iter_chunks, ".ply": _ply.iter_chunks}
 _POINT_WRITERS = {
     ".npy": _numpy.write_points,
     ".ply": _ply.write_points,
@@ -66,11 +73,23 @@ POINT_FORMATS: tuple[str, ...] = tuple(sorted(_POINT_READERS))
 MESH_FORMATS: tuple[str, ...] = tuple(sorted(_MESH_WRITERS))
 
 
-def read_points(path: str | os.PathLike) -> PointCloud:
-    """Read a point cloud, with normals and sensor positions when the file has them.
+def read_points(
+    path: str | os.PathLike,
+    *,
+    crop=None,
+    sample: float | None = None,
+    voxel_size: float | None = None,
+    seed: int | None = 0,
+    chunk_points: int = CHUNK_POINTS,
+) -> PointCloud:
+    """Read a point cloud with the normals, sensor positions and intensity the file has.
 
     This is the first stage of the pipeline: everything after it works on the validated
-    arrays of the returned cloud.
+    arrays of the returned cloud. Given `crop`, `sample` or `voxel_size`, the cloud is
+    reduced while it is read, exactly as `zeroset.reconstruct` would reduce it
+    (`zeroset.prepare.reduce_chunks`); LAS and LAZ files are then read `chunk_points` at a
+    time (binary PLY files too, memory-mapped), so a file far larger than memory can be read
+    at a reduced density.
 
     Parameters
     ----------
@@ -79,22 +98,41 @@ def read_points(path: str | os.PathLike) -> PointCloud:
 
         - ``.ply``: the ``vertex`` element's ``x, y, z`` (any numeric type), ``nx, ny, nz``
           and ``vp_x, vp_y, vp_z`` (or ``viewpoint_x, ...``); ASCII or binary.
+        - ``.las``, ``.laz``: scaled coordinates in float64, ``intensity``, and normals and
+          viewpoints from extra dimensions named as in PLY.
+        - ``.pcd``: ASCII, binary or binary_compressed; ``normal_x, ...`` (or ``nx, ...``),
+          ``intensity``; viewpoints from ``vp_x, ...`` fields or a non-default
+          ``VIEWPOINT``. Rows with NaN coordinates (PCL's "no return") are dropped.
+        - ``.e57``: every scan in the file's frame, each point's viewpoint the position of
+          the scanner that saw it, ``intensity`` when every scan has it.
         - ``.xyz``, ``.txt``, ``.csv``, ``.pts``: rows ``x y z [nx ny nz]`` separated by
           whitespace or commas, with ``#`` comments and an optional header line.
         - ``.npy``: an (N, >=3) table, normals in columns 4-6 when there are exactly six.
         - ``.npz``: arrays ``points`` (else the first), ``normals``, ``viewpoints``.
+    crop : sequence of 6 floats, optional
+        Keep the points inside the box ``xmin, ymin, zmin, xmax, ymax, zmax``.
+    sample : float, optional
+        Keep each point with this probability, in (0, 1].
+    voxel_size : float, optional
+        Keep the point nearest to the centroid of each occupied voxel of this size.
+    seed : int or None, default 0
+        Seed of `sample`.
+    chunk_points : int
+        Points per chunk when a LAS or LAZ file is reduced while read.
 
     Returns
     -------
     PointCloud
-        ``points`` : (N, 3) float64; ``normals`` : (N, 3) float64 or None;
-        ``viewpoints`` : (N, 3) float64 or None; ``source`` : `path` as a string.
+        ``points`` : (N, 3) float64; ``normals``, ``viewpoints`` : (N, 3) float64 or None;
+        ``intensity`` : (N,) float64 or None; ``source`` : `path` as a string;
+        ``reduction`` : the counts of the reduction, empty when none ran.
 
     Raises
     ------
     InputError
         If the suffix is unknown, the file is missing, unreadable or malformed, holds no
-        points, or holds non-finite values. The message starts with `path`.
+        points (or none are left after reduction), or holds non-finite values. The
+        message starts with `path`.
 
     See Also
     --------
@@ -109,20 +147,49 @@ def read_points(path: str | os.PathLike) -> PointCloud:
     (3, 3)
     """
     target, reader = _existing(path, _POINT_READERS, "point")
+    reduce = crop is not None or sample is not None or voxel_size is not None
+    options = dict(crop_box=crop, sample=sample, voxel_size=voxel_size, seed=seed)
+    counts: dict = {}
     with _about(path, "read"):
-        raw = reader(target)
-        if np.size(raw["points"]) == 0:
+        chunks = _POINT_CHUNKS.get(target.suffix.lower())
+        if reduce and chunks is not None:
+            chunk_points = int(chunk_points)
+            reduction = reduce_chunks(lambda: chunks(target, chunk_points), **options)
+            columns, counts = reduction.columns, reduction.counts
+        else:
+            columns = _columns(reader(target))
+            if reduce:
+                reduction = reduce_chunks(lambda: [columns], **options)
+                columns, counts = reduction.columns, reduction.counts
+        if reduce and counts["input_points"] == 0:
             raise InputError("contains no points")
-        points = _checked(as_points, raw["points"], "points")
-        extras = {
-            name: _checked(as_points, raw[name], name)
-            for name in ("normals", "viewpoints")
-            if raw.get(name) is not None
-        }
-        for name, values in extras.items():
-            if len(values) != len(points):
-                raise InputError(f"has {len(points)} points but {len(values)} {name}")
-    return PointCloud(points=points, source=os.fspath(path), **extras)
+        if len(columns["points"]) == 0:
+            left = f"no points left of {counts['input_points']} after cropping and sampling"
+            raise InputError(left)
+    return PointCloud(
+        points=columns["points"],
+        normals=columns.get("normals"),
+        viewpoints=columns.get("viewpoints"),
+        intensity=columns.get("intensity"),
+        source=os.fspath(path),
+        reduction=counts,
+    )
+
+
+def _columns(raw: dict) -> dict[str, np.ndarray]:
+    """Validate a reader's arrays: finite (N, 3) points and extras, and (N,) intensity."""
+    if np.size(raw["points"]) == 0:
+        raise InputError("contains no points")
+    columns = {"points": _checked(as_points, raw["points"], "points")}
+    for name in ("normals", "viewpoints"):
+        if raw.get(name) is not None:
+            columns[name] = _checked(as_points, raw[name], name)
+    if raw.get("intensity") is not None:
+        columns["intensity"] = np.asarray(raw["intensity"], dtype=np.float64).reshape(-1)
+    for name, values in columns.items():
+        if len(values) != len(columns["points"]):
+            raise InputError(f"has {len(columns['points'])} points but {len(values)} {name}")
+    return columns
 
 
 def write_points(path: str | os.PathLike, points, *, normals=None, viewpoints=None) -> Path:
@@ -284,12 +351,16 @@ def _existing(path: str | os.PathLike, table: dict, kind: str):
         raise InputError(f"{os.fspath(path)}: no such file")
     if target.is_dir():
         raise InputError(f"{os.fspath(path)}: is a directory, not a {kind} file")
+    if not target.is_file():  # a FIFO would hang, a device would be read forever
+        raise InputError(f"{os.fspath(path)}: is not a regular file")
     return target, function
 
 
 def _writable(path: str | os.PathLike, table: dict, kind: str):
     """Check that `path` has a known suffix, an existing directory and is not a directory."""
     target, function = _lookup(path, table, kind)
+    if target.parent.is_file():
+        raise InputError(f"{os.fspath(path)}: {target.parent} is a file, not a directory")
     if not target.parent.is_dir():
         raise InputError(f"{os.fspath(path)}: no such directory {str(target.parent)!r}")
     if target.is_dir():

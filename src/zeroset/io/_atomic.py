@@ -17,10 +17,12 @@ def atomic_target(target: Path) -> Iterator[Path]:
     """Yield a temporary path beside `target`, then move it onto `target`.
 
     The caller writes the whole file to the yielded path. When the block ends normally the
-    temporary file takes the permissions `target` has (or would get from the umask) and is
-    renamed onto `target` with `os.replace`, so readers see either the old file or the new one,
-    never half of it. When the block raises, the temporary file is removed, `target` is left
-    untouched and the exception propagates.
+    temporary file takes the permissions `target` has (or would get from the umask), is
+    flushed to disk (``fsync``) and renamed onto `target` with `os.replace`, and the rename is
+    flushed too, so readers, and the disk after a crash or power cut, hold either the old
+    file or the new one, never half of it. When the block raises, the temporary file is
+    removed, `target` is left untouched and the exception propagates. A process killed
+    while writing leaves `target` untouched and a hidden ``.<name>.*`` file beside it.
 
     Parameters
     ----------
@@ -44,10 +46,21 @@ def atomic_target(target: Path) -> Iterator[Path]:
     try:
         yield temp
         os.chmod(temp, _final_mode(target))
+        _fsync(temp)
         os.replace(temp, target)
     except BaseException:
         temp.unlink(missing_ok=True)
         raise
+    _fsync(target.parent)
+
+
+def _fsync(path: Path) -> None:
+    """Flush a file's data, or a directory's entries, to disk."""
+    descriptor = os.open(path, os.O_RDONLY)
+    try:
+        os.fsync(descriptor)
+    finally:
+        os.close(descriptor)
 
 
 def _final_mode(target: Path) -> int:

@@ -2,16 +2,21 @@
 
 from __future__ import annotations
 
+import math
 import zipfile
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import InputError
+from ._sniff import check_content
 
 __all__ = ["read_points", "write_points"]
 
-_MAGIC = (b"\x93NUMPY", b"PK\x03\x04", b"PK\x05\x06")  # .npy, .npz, empty .npz
+_HEADER_READERS = {
+    (1, 0): np.lib.format.read_array_header_1_0,
+    (2, 0): np.lib.format.read_array_header_2_0,
+}
 
 
 def read_points(path: Path) -> dict[str, np.ndarray | None]:
@@ -36,14 +41,20 @@ def read_points(path: Path) -> dict[str, np.ndarray | None]:
     Raises
     ------
     InputError
-        If the file is neither format, is truncated, holds pickled objects or is an empty
-        archive. Messages carry no path prefix.
+        If the file is neither format, is shorter than an array's header says (checked
+        before the array is allocated), holds pickled objects or is an empty archive.
+        Messages carry no path prefix.
     """
-    with open(path, "rb") as stream:
-        magic = stream.read(6)
-    if not magic.startswith(_MAGIC):
-        raise InputError("not a valid NPY or NPZ file (unrecognised leading bytes)")
+    kind = check_content(path, (".npy", ".npz"), "NPY or NPZ file")
     try:
+        if kind == ".npy":
+            with open(path, "rb") as stream:
+                _check_array_header(stream, path.stat().st_size)
+        else:
+            with zipfile.ZipFile(path) as archive:
+                for member in archive.infolist():
+                    with archive.open(member) as stream:
+                        _check_array_header(stream, member.file_size, member.filename)
         loaded = np.load(path, allow_pickle=False)
         if isinstance(loaded, np.ndarray):
             return _from_table(loaded)
@@ -53,6 +64,29 @@ def read_points(path: Path) -> dict[str, np.ndarray | None]:
         raise
     except (ValueError, EOFError, OSError, zipfile.BadZipFile) as exc:
         raise InputError(f"not a valid NPY or NPZ file ({exc})") from exc
+
+
+def _check_array_header(stream, size: int, member: str = "") -> None:
+    """Refuse an NPY array holding Python objects, or longer than the `size` bytes stored.
+
+    Raises ValueError for a malformed header.
+    """
+    header = _HEADER_READERS.get(np.lib.format.read_magic(stream))
+    if header is None:
+        return  # version 3 (UTF-8 field names): left to np.load
+    shape, _, dtype = header(stream)
+    where = f"array {member!r} " if member else ""
+    if dtype.hasobject:
+        raise InputError(
+            f"{where}holds pickled Python objects, which are never loaded; save numbers"
+        )
+    needed = math.prod(shape) * dtype.itemsize
+    available = size - stream.tell()
+    if needed > available:
+        raise InputError(
+            f"{where}header declares {' x '.join(map(str, shape))} values, {needed} bytes, but "
+            f"only {available} bytes follow it; the file is truncated or the header is wrong"
+        )
 
 
 def _from_table(table: np.ndarray) -> dict[str, np.ndarray | None]:

@@ -3,23 +3,39 @@
 from __future__ import annotations
 
 import os
+import re
 import warnings
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
 import plyfile
 
 from ..errors import InputError
+from ._fields import INTENSITY, NORMALS, VIEWPOINTS, XYZ, find_group
+from ._sniff import check_content
 
-__all__ = ["read_points", "write_ply", "write_points"]
+__all__ = ["iter_chunks", "read_points", "write_ply", "write_points"]
 
-_XYZ = ("x", "y", "z")
-_NORMALS = ("nx", "ny", "nz")
-_VIEWPOINTS = (("vp_x", "vp_y", "vp_z"), ("viewpoint_x", "viewpoint_y", "viewpoint_z"))
+
+#: Bytes a header may take; plyfile parses headers a byte at a time (about 2 MB/s).
+_HEADER_LIMIT = 1 << 20
+_END_HEADER = re.compile(rb"(?:^|[\r\n])end_header[ \t]*(?:\r\n|\r|\n)")
+_NEWLINE = re.compile(rb"\r\n|\r|\n")
+_TYPE_BYTES = {
+    name: size
+    for names, size in (
+        (("char", "uchar", "int8", "uint8"), 1),
+        (("short", "ushort", "int16", "uint16"), 2),
+        (("int", "uint", "int32", "uint32", "float", "float32"), 4),
+        (("double", "float64"), 8),
+    )
+    for name in names
+}
 
 
 def read_points(path: Path) -> dict[str, np.ndarray | None]:
-    """Read points, normals and viewpoints from the ``vertex`` element of a PLY file.
+    """Read points, normals, viewpoints and intensity from the ``vertex`` element of a PLY file.
 
     Parameters
     ----------
@@ -29,51 +45,129 @@ def read_points(path: Path) -> dict[str, np.ndarray | None]:
     Returns
     -------
     dict
-        ``points`` : (N, 3) float64; ``normals`` : (N, 3) float64 or None, from ``nx, ny, nz``;
-        ``viewpoints`` : (N, 3) float64 or None, from ``vp_x, vp_y, vp_z`` or
-        ``viewpoint_x, viewpoint_y, viewpoint_z``. Other properties (colours, intensity) and
-        other elements (faces, range_grid) are ignored.
+        ``points`` : (N, 3) float64; ``normals`` : (N, 3) float64 or None, from ``nx, ny, nz``
+        (or ``normal_x, ...``); ``viewpoints`` : (N, 3) float64 or None, from
+        ``vp_x, vp_y, vp_z`` or ``viewpoint_x, viewpoint_y, viewpoint_z``; ``intensity`` :
+        (N,) float64 or None. Other properties (colours) and other elements (faces,
+        range_grid) are ignored.
 
     Raises
     ------
     InputError
-        If the file is not valid PLY, has no ``vertex`` element, or has only some of the
-        properties of a group (``nx`` without ``nz``, say). Messages carry no path prefix.
+        If the file is not valid PLY, is shorter than its header says (checked before
+        anything is read, so a header that declares 10**9 rows fails at once), has no
+        ``vertex`` element, has lists for x, y or z, or has only some of the properties of
+        a group (``nx`` without ``nz``, say). Messages carry no path prefix.
     """
+    return next(iter_chunks(path, None))
+
+
+def iter_chunks(path: Path, chunk_points: int | None) -> Iterator[dict[str, np.ndarray | None]]:
+    """Yield what `read_points` returns, `chunk_points` rows at a time (None: all at once).
+
+    A binary vertex element without list properties is memory-mapped, so only the rows of
+    the current chunk are ever in memory; other files are parsed whole by plyfile first.
+    """
+    check_content(path, (".ply",), "PLY file")
+    _check_length(path)
     try:
         with warnings.catch_warnings():
             # plyfile warns on empty list rows of elements we do not use (range grids).
             warnings.simplefilter("ignore", UserWarning)
-            data = plyfile.PlyData.read(os.fspath(path), mmap=False)
+            # Memory-mapped: elements without lists are read in one go, not row by row.
+            data = plyfile.PlyData.read(os.fspath(path), mmap="c")
     except (plyfile.PlyParseError, ValueError) as exc:
         raise InputError(f"not a valid PLY file ({exc})") from exc
     names = [element.name for element in data.elements]
     if "vertex" not in names:
         raise InputError(f"has no 'vertex' element (elements: {', '.join(names) or 'none'})")
     vertex = data["vertex"]
-    viewpoints = None
-    for group in _VIEWPOINTS:
-        viewpoints = _columns(vertex, group)
-        if viewpoints is not None:
-            break
-    points = _columns(vertex, _XYZ)
-    if points is None:
+    groups = {
+        "points": _group(vertex, XYZ, "properties"),
+        "normals": _group(vertex, NORMALS, "properties"),
+        "viewpoints": _group(vertex, VIEWPOINTS, "properties"),
+        "intensity": _group(vertex, INTENSITY, "properties"),
+    }
+    if groups["points"] is None:
         raise InputError("'vertex' element has no x, y, z properties")
-    return {"points": points, "normals": _columns(vertex, _NORMALS), "viewpoints": viewpoints}
+    table, total = vertex.data, len(vertex.data)
+    step = max(1, total if chunk_points is None else chunk_points)
+    for start in range(0, max(total, 1), step):
+        rows = table[start : start + step]
+        yield {name: _stack(rows, group) for name, group in groups.items()}
 
 
-def _columns(vertex: plyfile.PlyElement, group: tuple[str, str, str]) -> np.ndarray | None:
-    """Stack three vertex properties as an (N, 3) float64 array; None if all are absent."""
-    present = [name for name in group if name in vertex.data.dtype.names]
-    if not present:
+def _group(vertex: plyfile.PlyElement, groups, what: str) -> tuple[str, ...] | None:
+    """The stored names of the first of `groups` the vertex element has; lists refused."""
+    names = find_group(vertex.data.dtype.names, groups, f"'vertex' {what}")
+    if names is None:
         return None
-    if len(present) < 3:
-        missing = ", ".join(name for name in group if name not in present)
-        raise InputError(f"'vertex' element has {', '.join(present)} but not {missing}")
+    lists = [n for n in names if isinstance(vertex.ply_property(n), plyfile.PlyListProperty)]
+    if lists:
+        raise InputError(f"'vertex' properties {', '.join(lists)} are lists, not numbers")
+    return names
+
+
+def _stack(rows: np.ndarray, names: tuple[str, ...] | None) -> np.ndarray | None:
+    """Columns `names` of a structured array as (n, 3) float64, or (n,) for one name."""
+    if names is None:
+        return None
     try:
-        return np.column_stack([np.asarray(vertex[name], dtype=np.float64) for name in group])
+        columns = [np.asarray(rows[name], dtype=np.float64) for name in names]
     except (TypeError, ValueError) as exc:
-        raise InputError(f"'vertex' properties {', '.join(group)} are not numbers") from exc
+        raise InputError(f"'vertex' properties {', '.join(names)} are not numbers") from exc
+    return columns[0] if len(columns) == 1 else np.column_stack(columns)
+
+
+def _check_length(path: Path) -> None:
+    """Refuse a file shorter than the fewest bytes the rows its header declares can take.
+
+    This runs before plyfile allocates the rows. A header that cannot be parsed is left
+    for plyfile to report.
+    """
+    with open(path, "rb") as stream:
+        head = stream.read(_HEADER_LIMIT)
+    end = _END_HEADER.search(head)
+    if end is None:
+        if len(head) == _HEADER_LIMIT:
+            raise InputError(
+                f"not a valid PLY file (no 'end_header' in its first {len(head)} bytes)"
+            )
+        return
+    binary, elements = _declared(head[: end.start()])
+    # The last value of an ASCII file may lack its newline.
+    available = path.stat().st_size - end.end() + (0 if binary else 1)
+    needed = 0
+    for name, count, row_bytes in elements:
+        needed += count * row_bytes
+        if needed > available:
+            raise InputError(
+                f"header declares {count} {name} rows, at least {needed} bytes, but only "
+                f"{available} bytes follow it; the file is truncated or the header is wrong"
+            )
+
+
+def _declared(header: bytes) -> tuple[bool, list[tuple[str, int, int]]]:
+    """Whether a PLY header is binary, and its elements: name, rows, fewest bytes per row.
+
+    A binary row takes at least the bytes of its scalar properties and list lengths; an
+    ASCII row, two bytes per property (one character and a separator). Malformed lines
+    count for nothing.
+    """
+    lines = [line.decode("ascii", "replace").split() for line in _NEWLINE.split(header)]
+    binary = any(words[:1] == ["format"] and words[1:2] != ["ascii"] for words in lines)
+    elements = []
+    for words in lines:
+        if words[:1] == ["element"] and len(words) == 3:
+            count = int(words[2]) if words[2].lstrip("-").isdigit() else 0
+            if count < 0:
+                raise InputError(f"not a valid PLY file (element {words[1]!r} has {count} rows)")
+            elements.append((words[1], count, 0))
+        elif words[:1] == ["property"] and len(words) >= 3 and elements:
+            kind = words[2] if words[1] == "list" else words[1]
+            name, count, row_bytes = elements[-1]
+            elements[-1] = (name, count, row_bytes + (_TYPE_BYTES.get(kind, 1) if binary else 2))
+    return binary, elements
 
 
 def write_points(
@@ -127,7 +221,7 @@ def write_ply(
     InputError
         If a face index does not fit the PLY ``int`` type (2**31 vertices or more).
     """
-    groups = [(_XYZ, vertices), (_NORMALS, normals), (_VIEWPOINTS[0], viewpoints)]
+    groups = [(XYZ[0], vertices), (NORMALS[0], normals), (VIEWPOINTS[0], viewpoints)]
     groups = [(names, values) for names, values in groups if values is not None]
     columns = [name for names, _ in groups for name in names]
     table = np.hstack([values for _, values in groups])

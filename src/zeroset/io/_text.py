@@ -2,17 +2,20 @@
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import InputError
+from ._sniff import check_content
 
 __all__ = ["read_points", "write_points"]
 
 _ENCODING = "utf-8-sig"
-
+_DELIMITERS = {";": "semicolons", ",": "commas", None: "whitespace"}
+_ANY_DELIMITER = re.compile(r"[\s,;]+")
 
 @dataclass(frozen=True)
 class _Layout:
@@ -33,11 +36,12 @@ class _Layout:
 def read_points(path: Path) -> dict[str, np.ndarray | None]:
     """Read ``x y z [nx ny nz]`` rows from a whitespace- or comma-separated text file.
 
-    The delimiter is a comma if the first data line has one, else whitespace. ``#`` starts a
-    comment. One leading line that is not all numbers is a header; one leading line with a
-    single number is a point count (PTS) and is skipped too. Only the first three columns are
-    read, unless the first data line has exactly six: then columns 4-6 are normals, except
-    when a header names them otherwise (``x,y,z,r,g,b``).
+    The delimiter of every line is a semicolon or else a comma if the first data line has
+    one, else whitespace. ``#`` starts a comment. One leading line that is not all numbers
+    is a header; one leading line with a single number is a point count (PTS) and is skipped
+    too. Only the first three columns are read, unless the first data line has exactly six:
+    then columns 4-6 are normals, except when a header names them otherwise
+    (``x,y,z,r,g,b``).
 
     Parameters
     ----------
@@ -52,10 +56,12 @@ def read_points(path: Path) -> dict[str, np.ndarray | None]:
     Raises
     ------
     InputError
-        If the file is not UTF-8 text, a data line has fewer than three fields (six in a file
-        with normals), or a field is not a number. Messages carry no path prefix and
-        name the 1-based file line.
+        If the file is another format (PLY, NumPy) or not UTF-8 text, a data line has fewer
+        than three fields (six in a file with normals), separates them differently from the
+        first data line, or a field is not a number. Messages carry no path prefix and name
+        the 1-based file line.
     """
+    check_content(path, ("text", "empty", "binary"), "text file")
     try:
         layout = _sniff(path)
         if layout is None:
@@ -92,7 +98,7 @@ def _sniff(path: Path) -> _Layout | None:
             text = line.split("#", 1)[0].strip()
             if not text:
                 continue
-            delimiter = "," if "," in text else None
+            delimiter = _delimiter(text)
             fields = _split(text, delimiter)
             if skiprows == 0 and (not _numeric(fields) or len(fields) == 1):
                 skiprows, header = number, fields if not _numeric(fields) else None
@@ -112,12 +118,26 @@ def _diagnose(path: Path, layout: _Layout) -> str | None:
             if number <= layout.skiprows or not text:
                 continue
             fields = _split(text, layout.delimiter)
+            bad = [field for field in fields[: layout.used] if not _numeric([field])]
+            if len(fields) >= layout.used and not bad:
+                continue
+            mixed = _delimiter(text) != layout.delimiter or any(len(f.split()) > 1 for f in fields)
+            parts = _ANY_DELIMITER.split(text)
+            if mixed and len(parts) >= layout.used and _numeric(parts[: layout.used]):
+                return (
+                    f"line {number} does not separate fields with "
+                    f"{_DELIMITERS[layout.delimiter]} as line {layout.first_line} does; "
+                    "use one delimiter throughout"
+                )
             if len(fields) < layout.used:
                 return f"line {number} has {_columns(len(fields))}; expected at least {layout.used}"
-            bad = [field for field in fields[: layout.used] if not _numeric([field])]
-            if bad:
-                return f"line {number}: cannot read {bad[0]!r} as a number"
+            return f"line {number}: cannot read {bad[0]!r} as a number"
     return None
+
+
+def _delimiter(text: str) -> str | None:
+    """Return the delimiter a data line uses: ";" or "," if it holds one, else None."""
+    return next((mark for mark in (";", ",") if mark in text), None)
 
 
 def _columns(count: int) -> str:
