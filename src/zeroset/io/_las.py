@@ -13,7 +13,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..prepare import CHUNK_POINTS
-from ._fields import NORMALS, VIEWPOINTS, find_group
+from ._fields import NORMALS, VIEWPOINTS, find_group, stack
 from ._sniff import check_content
 
 __all__ = ["iter_chunks", "read_points"]
@@ -82,8 +82,8 @@ def iter_chunks(path: Path, chunk_points: int) -> Iterator[dict[str, np.ndarray 
                 read += len(record)
                 yield {
                     "points": np.column_stack([record.x, record.y, record.z]).astype(np.float64),
-                    "normals": _stack(record, normals),
-                    "viewpoints": _stack(record, viewpoints),
+                    "normals": stack(record, normals, "extra dimensions"),
+                    "viewpoints": stack(record, viewpoints, "extra dimensions"),
                     "intensity": np.asarray(record.intensity, dtype=np.float64),
                 }
             if read == 0:
@@ -128,13 +128,6 @@ def _check_size(path: Path, header) -> None:
         raise InputError(
             f"is truncated: the header says {header.point_count} points, it holds {held}"
         )
-
-
-def _stack(record, names: tuple[str, str, str] | None) -> np.ndarray | None:
-    """Stack three dimensions of a point record as (n, 3) float64; None for no names."""
-    if names is None:
-        return None
-    return np.column_stack([np.asarray(record[name], dtype=np.float64) for name in names])
 
 
 def _empty(normals, viewpoints) -> dict[str, np.ndarray | None]:

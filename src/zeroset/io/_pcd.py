@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
-from ._fields import NORMALS, VIEWPOINTS, XYZ, find_group
+from ._fields import INTENSITY, NORMALS, VIEWPOINTS, XYZ, find_group, stack
 from ._sniff import check_content
 
 __all__ = ["read_points"]
@@ -60,17 +60,17 @@ def read_points(path: Path) -> dict[str, np.ndarray | None]:
     xyz = find_group(names, XYZ, "fields")
     if xyz is None:
         raise InputError(f"has no x, y, z fields (fields: {', '.join(names) or 'none'})")
-    points = _stack(data, xyz)
+    points = stack(data, xyz, "fields")
     valid = ~np.isnan(points).any(axis=1)
     normals = find_group(names, NORMALS, "fields")
-    viewpoints = _stack(data, find_group(names, VIEWPOINTS, "fields"))
+    viewpoints = stack(data, find_group(names, VIEWPOINTS, "fields"), "fields")
     pose = tuple(float(v) for v in cloud.metadata.viewpoint)
     if viewpoints is None and pose != _DEFAULT_VIEWPOINT:
         viewpoints = np.tile(pose[:3], (len(points), 1))
-    intensity = np.asarray(data["intensity"], dtype=np.float64) if "intensity" in names else None
+    intensity = stack(data, find_group(names, INTENSITY, "fields"), "fields")
     return {
         "points": points[valid],
-        "normals": None if normals is None else _stack(data, normals)[valid],
+        "normals": None if normals is None else stack(data, normals, "fields")[valid],
         "viewpoints": None if viewpoints is None else viewpoints[valid],
         "intensity": None if intensity is None else intensity[valid],
     }
@@ -113,16 +113,6 @@ def _check_layout(path: Path) -> int:
                     f"the compressed block is {packed} bytes of {size - 8} present"
                 )
     return count
-
-
-def _stack(data: np.ndarray, names: tuple[str, str, str] | None) -> np.ndarray | None:
-    """Stack three scalar fields of a structured array as (N, 3) float64; None for no names."""
-    if names is None:
-        return None
-    try:
-        return np.column_stack([np.asarray(data[name], dtype=np.float64) for name in names])
-    except ValueError as exc:
-        raise InputError(f"fields {', '.join(names)} are not scalar numbers ({exc})") from exc
 
 
 def _first_line(exc: Exception) -> str:

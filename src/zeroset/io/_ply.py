@@ -12,7 +12,7 @@ import numpy as np
 import plyfile
 
 from ..errors import InputError
-from ._fields import INTENSITY, NORMALS, VIEWPOINTS, XYZ, find_group
+from ._fields import INTENSITY, NORMALS, VIEWPOINTS, XYZ, find_group, stack
 from ._sniff import check_content
 
 __all__ = ["iter_chunks", "read_points", "write_ply", "write_points"]
@@ -94,7 +94,7 @@ def iter_chunks(path: Path, chunk_points: int | None) -> Iterator[dict[str, np.n
     step = max(1, total if chunk_points is None else chunk_points)
     for start in range(0, max(total, 1), step):
         rows = table[start : start + step]
-        yield {name: _stack(rows, group) for name, group in groups.items()}
+        yield {name: stack(rows, group, "'vertex' properties") for name, group in groups.items()}
 
 
 def _group(vertex: plyfile.PlyElement, groups, what: str) -> tuple[str, ...] | None:
@@ -106,17 +106,6 @@ def _group(vertex: plyfile.PlyElement, groups, what: str) -> tuple[str, ...] | N
     if lists:
         raise InputError(f"'vertex' properties {', '.join(lists)} are lists, not numbers")
     return names
-
-
-def _stack(rows: np.ndarray, names: tuple[str, ...] | None) -> np.ndarray | None:
-    """Columns `names` of a structured array as (n, 3) float64, or (n,) for one name."""
-    if names is None:
-        return None
-    try:
-        columns = [np.asarray(rows[name], dtype=np.float64) for name in names]
-    except (TypeError, ValueError) as exc:
-        raise InputError(f"'vertex' properties {', '.join(names)} are not numbers") from exc
-    return columns[0] if len(columns) == 1 else np.column_stack(columns)
 
 
 def _check_length(path: Path) -> None:
