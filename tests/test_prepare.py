@@ -112,3 +112,15 @@ def test_average_in_cells_gives_one_mean_per_cell(rng):
     in_first = np.all(np.floor(points / 0.5) == cells[0], axis=1)
     np.testing.assert_allclose(means[0], points[in_first].mean(axis=0))
     np.testing.assert_allclose(label_means[0], labels[in_first].mean(axis=0))
+
+
+@pytest.mark.parametrize("scale", [1.0, 1e17])  # 1e17: cells span more than 2**62 keys
+def test_average_in_cells_orders_cells_as_their_indices(rng, scale):
+    points = rng.normal(size=(3000, 3)) * scale
+    size = 0.3 * scale
+    means, = average_in_cells(points, size)
+    cells, label = np.unique(np.floor(points / size), axis=0, return_inverse=True)
+    expected = np.stack([np.bincount(label.reshape(-1), weights=points[:, d]) for d in range(3)], 1)
+    expected /= np.bincount(label.reshape(-1))[:, None]
+    np.testing.assert_allclose(means, expected, rtol=1e-12)
+    assert np.all(np.floor(means / size) == cells)
