@@ -11,6 +11,7 @@ __all__ = ["main"]
 
 DEMO_POINTS = 40_000
 HTML_SUFFIXES = (".html", ".htm")
+MESH_HELP = "mesh: .ply .obj .stl .off"
 POINTS_HELP = "points: .ply .las .laz .pcd .e57 .xyz .txt .csv .pts .npy .npz"
 
 
@@ -72,7 +73,7 @@ def _parser() -> argparse.ArgumentParser:
         description="Reconstruct a triangle mesh from a point cloud file.",
     )
     rec.add_argument("input", type=Path, help=POINTS_HELP)
-    rec.add_argument("-o", "--output", type=Path, required=True, help="mesh: .ply .obj .stl .off")
+    rec.add_argument("-o", "--output", type=Path, required=True, help=MESH_HELP)
     rec.add_argument(
         "--report",
         type=Path,
@@ -98,7 +99,7 @@ def _parser() -> argparse.ArgumentParser:
     )
     opt.add_argument("mesh", type=Path, help="starting mesh: .ply .obj .stl .off")
     opt.add_argument("points", type=Path, help=POINTS_HELP)
-    opt.add_argument("-o", "--output", type=Path, required=True, help="mesh: .ply .obj .stl .off")
+    opt.add_argument("-o", "--output", type=Path, required=True, help=MESH_HELP)
     opt.add_argument("--report", type=Path, help="write parameters, energies and moves as JSON")
     opt.add_argument("--ascii", action="store_true", help="write PLY as text instead of binary")
     opt.add_argument("--c-rep", type=float, help="cost of a vertex (default: from the noise)")
@@ -114,7 +115,7 @@ def _parser() -> argparse.ArgumentParser:
         "off-screen, with its boundary edges in red and optionally the points, their normals "
         "and colours by distance to the points.",
     )
-    ren.add_argument("mesh", type=Path, help="mesh: .ply .obj .stl .off")
+    ren.add_argument("mesh", type=Path, help=MESH_HELP)
     ren.add_argument(
         "points", type=Path, nargs="?", help=POINTS_HELP.replace("points", "points to draw", 1)
     )
@@ -282,31 +283,30 @@ def _config_overrides(args: argparse.Namespace) -> dict:
 
 def _run_reconstruct(args: argparse.Namespace) -> int:
     import time
+    from dataclasses import replace
 
     from . import io
-    from .errors import InputError
+    from .config import ReconstructionConfig
     from .pipeline import reconstruct
 
     _check_outputs(
         [args.output, args.report, args.preview], [args.input], force=args.force, mesh=args.output
     )
-    overrides = _config_overrides(args)
+    config = ReconstructionConfig().with_overrides(**_config_overrides(args))
     reduce = {}
     if not args.optimize:  # phase 2 takes every point the crop keeps, so it reads them all
-        reduce = {name: overrides.pop(name, None) for name in ("crop", "sample", "voxel_size")}
+        reduce = dict(crop=config.crop, sample=config.sample, voxel_size=config.voxel_size)
+        config = replace(config, crop=None, sample=None, voxel_size=None)
     start = time.perf_counter()
-    cloud = io.read_points(args.input, **reduce, seed=overrides.get("seed", 0))
+    cloud = io.read_points(args.input, **reduce, seed=config.seed)
     reading = {"seconds": time.perf_counter() - start, **cloud.reduction}
-    try:
-        result = reconstruct(
-            cloud.points,
-            viewpoints=cloud.viewpoints,
-            optimize=args.optimize,
-            progress=not args.quiet,
-            **overrides,
-        )
-    except InputError as exc:  # about the points, so about the file
-        raise InputError(f"{args.input}: {exc}") from exc
+    result = reconstruct(
+        cloud.points,
+        config,
+        viewpoints=cloud.viewpoints,
+        optimize=args.optimize,
+        progress=not args.quiet,
+    )
     return _finish(
         result,
         args,
@@ -353,28 +353,20 @@ def _check_outputs(
 ) -> None:
     """Refuse, before any work, outputs that cannot be written or would lose data.
 
-    An output may not be an input (not even with --force), a folder, in a missing folder,
-    named twice, or an existing file unless `force`; `mesh` must have a mesh suffix.
+    An output must be writable (`io.check_output`), may not be an input (not even with
+    --force) or named twice, nor an existing file unless `force`; `mesh` must have a mesh
+    suffix.
     """
     import os
 
     from . import io
     from .errors import InputError
 
-    if mesh is not None and mesh.suffix.lower() not in io.MESH_FORMATS:
-        found = f"unknown mesh format {mesh.suffix!r}" if mesh.suffix else "has no suffix"
-        raise InputError(f"{mesh}: {found}; supported: {', '.join(io.MESH_FORMATS)}")
+    if mesh is not None:
+        io.check_output(mesh, mesh=True)
     written: list[Path] = []
     for target in filter(None, outputs):
-        resolved = target.resolve()
-        if resolved.parent.is_file():
-            raise InputError(f"{target}: {target.parent} is a file, not a directory")
-        if not resolved.parent.is_dir():
-            raise InputError(f"{target}: directory {target.parent} does not exist")
-        if not os.access(resolved.parent, os.W_OK | os.X_OK):
-            raise InputError(f"{target}: cannot write in {target.parent} (permission denied)")
-        if resolved.is_dir():
-            raise InputError(f"{target}: is a directory; give a file name")
+        resolved = io.check_output(target).resolve()
         for source in filter(None, inputs):
             if resolved == source.resolve() or (
                 resolved.exists() and source.exists() and os.path.samefile(resolved, source)

@@ -18,8 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from ._validate import as_points, require_rng
-from .errors import InputError
-from .io import atomic_target
+from .io import atomic_target, check_output
 from .pipeline import Reconstruction
 from .report import reconstruction_report
 from .topology import boundary_edges
@@ -73,11 +72,9 @@ def write_html_report(
     Raises
     ------
     InputError
-        If the folder of `path` does not exist.
+        If `path` cannot be written (`zeroset.io.check_output`).
     """
-    target = Path(path)
-    if not target.parent.is_dir():
-        raise InputError(f"{target}: directory {target.parent} does not exist")
+    target = check_output(path)
     rng = require_rng(rng)
     if report is None:
         report = reconstruction_report(result, source=source, points=points, rng=rng)

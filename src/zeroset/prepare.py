@@ -98,8 +98,8 @@ def reduce_chunks(
         If a chunk's points are not finite, an option is out of range, or the cells of
         `voxel_size` are too small for the cloud's extent.
     """
-    if sample is not None and not 0.0 < sample <= 1.0:
-        raise InputError(f"sample fraction must lie in (0, 1]; got {sample!r}")
+    if sample is not None:
+        _check_fraction(sample)
     if crop_box is not None:
         crop_box = (as_vector3(crop_box[:3], "crop box"), as_vector3(crop_box[3:], "crop box"))
     voxel_size = None if voxel_size is None else positive(voxel_size, "voxel_size")
@@ -162,9 +162,14 @@ def random_sample(n_points: int, fraction: float, *, seed=None) -> np.ndarray:
     (M,) int64
         Ascending row indices, ``M`` about ``fraction * n_points``.
     """
-    return reduce_chunks(
-        lambda: [{"points": np.zeros((n_points, 3))}], sample=fraction, seed=seed
-    ).rows
+    _check_fraction(fraction)
+    return np.flatnonzero(np.random.default_rng(seed).random(n_points) < fraction)
+
+
+def _check_fraction(fraction: float) -> None:
+    """Reject a sampling fraction outside (0, 1]."""
+    if not 0.0 < fraction <= 1.0:
+        raise InputError(f"sample fraction must lie in (0, 1]; got {fraction!r}")
 
 
 def voxel_sample(points: np.ndarray, voxel_size: float) -> np.ndarray:

@@ -27,6 +27,7 @@ __all__ = [
     "MESH_FORMATS",
     "POINT_FORMATS",
     "atomic_target",
+    "check_output",
     "read_mesh",
     "read_points",
     "write_json",
@@ -356,16 +357,45 @@ def _existing(path: str | os.PathLike, table: dict, kind: str):
     return target, function
 
 
-def _writable(path: str | os.PathLike, table: dict, kind: str):
-    """Check that `path` has a known suffix, an existing directory and is not a directory."""
-    target, function = _lookup(path, table, kind)
-    if target.parent.is_file():
-        raise InputError(f"{os.fspath(path)}: {target.parent} is a file, not a directory")
-    if not target.parent.is_dir():
-        raise InputError(f"{os.fspath(path)}: no such directory {str(target.parent)!r}")
+def check_output(path: str | os.PathLike, *, mesh: bool = False) -> Path:
+    """Check that a file can be written at `path`, before any work is done for it.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+    mesh : bool
+        Also check that the suffix is one `write_mesh` writes.
+
+    Returns
+    -------
+    pathlib.Path
+        `path`.
+
+    Raises
+    ------
+    InputError
+        If its folder is missing, is a file or cannot be written in, `path` is a folder, or
+        (with `mesh`) its suffix is not in `MESH_FORMATS`. The message starts with `path`.
+    """
+    if mesh:
+        _lookup(path, _MESH_WRITERS, "mesh")
+    target = Path(path)
+    folder = target.parent
+    if folder.is_file():
+        raise InputError(f"{target}: {folder} is a file, not a directory")
+    if not folder.is_dir():
+        raise InputError(f"{target}: directory {folder} does not exist")
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise InputError(f"{target}: cannot write in {folder} (permission denied)")
     if target.is_dir():
-        raise InputError(f"{os.fspath(path)}: is a directory")
-    return target, function
+        raise InputError(f"{target}: is a directory; give a file name")
+    return target
+
+
+def _writable(path: str | os.PathLike, table: dict, kind: str):
+    """Check that `path` has a known suffix and can be written (`check_output`)."""
+    _, function = _lookup(path, table, kind)
+    return check_output(path), function
 
 
 def _checked(check, values, *args):
@@ -389,9 +419,7 @@ def _about(path: str | os.PathLike, verb: str) -> Iterator[None]:
 
 def write_json(path: str | os.PathLike, data: dict) -> Path:
     """Write `data` as indented JSON, atomically; return the path written."""
-    target = Path(path)
-    if not target.parent.is_dir():
-        raise InputError(f"{target}: directory {target.parent} does not exist")
+    target = check_output(path)
     with atomic_target(target) as temp:
         temp.write_text(json.dumps(data, indent=2, default=_json_default) + "\n")
     return target
