@@ -13,7 +13,7 @@ import os
 import tempfile
 from pathlib import Path
 
-SECTIONS = ("phase1", "phase2", "cubes", "report", "large", "peers")
+SECTIONS = ("phase1", "phase2", "cubes", "report", "large", "scans", "peers")
 
 INTRO = """# Benchmarks
 
@@ -34,6 +34,9 @@ and keeps the rest (this introduction included):
 - [Larger than memory](#larger-than-memory-a-100m-point-laz-at-reduced-density): a
   100M-point LAZ read in chunks and voxel-sampled while read, wall time and peak memory
   (`benchmarks/bench_large.py`).
+- [Anisotropic laser scans](#anisotropic-laser-scans): simulated in-pipe scans and real
+  rotating-laser scans, zeroset beside Open3D and PyMeshLab (`benchmarks/bench_scans.py`,
+  needs the `bench` extra).
 - [Peers](#peers-zeroset-against-open3d-pymeshlab-and-vtk): zeroset against the tools a user
   would otherwise pick (Open3D, PyMeshLab, VTK) on synthetic pipes with exact ground truth and
   on real scans (`benchmarks/bench_peers.py`, needs the `bench` extra).

@@ -12,10 +12,13 @@ CASES = [
     (0.25, 1.0, 0.05, 0),
     (0.25, 4.0, 0.0, 1),
     (0.35, 2.0, 0.05, 2),
+    # The narrowest pipe, scanner on the axis: far down the pipe every beam angle gives one
+    # ring of points, smeared by range noise into a band with gaps wider than rho+delta.
+    (0.1, 1.0, 0.0, 3),
 ]
 SLOW_CASES = [
     (radius, step, offset, seed)
-    for radius in (0.15, 0.25, 0.35)
+    for radius in (0.1, 0.15, 0.25, 0.35)
     for step in (1.0, 2.0, 3.0, 4.0)
     for offset in (0.0, 0.05)
     for seed in (3, 4)

@@ -76,6 +76,18 @@ def positive(value, name: str, *, allow_none: bool = False, integer: bool = Fals
     return int(value) if integer else float(value)
 
 
+def positive_per_row(value, name: str, rows: int) -> np.ndarray:
+    """Return `value`, one positive number or one per row, as a (rows,) float64 array."""
+    if np.ndim(value) == 0:
+        return np.full(rows, positive(value, name))
+    array = np.asarray(value, dtype=np.float64)
+    if array.shape != (rows,) or not (np.all(np.isfinite(array)) and np.all(array > 0.0)):
+        raise InputError(
+            f"{name} must be a positive number or {rows} of them; got shape {array.shape}"
+        )
+    return array
+
+
 def require_rng(rng) -> np.random.Generator:
     """Return a Generator from a Generator, an integer seed or None."""
     if isinstance(rng, np.random.Generator):

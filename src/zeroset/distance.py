@@ -2,13 +2,11 @@
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from . import _lattice
 from ._mc_table import CORNER_OFFSETS
-from ._validate import as_points, as_vector3, positive
+from ._validate import as_points, as_vector3, positive, positive_per_row
 from .neighbours import build_tree
 from .types import DistanceField
 
@@ -22,9 +20,12 @@ ZERO_NUDGE = 1e-3
 #: single badly fitted plane then cannot open a hole.
 CANDIDATES = 3
 
+#: Reach of a bridge point (see `zeroset.density.gap_bridges`), over the smallest radius.
+BRIDGE_REACH = 1.25
+
 
 def signed_distance(
-    points, centroids, normals, *, cube_size: float, radius: float, origin=None
+    points, centroids, normals, *, cube_size: float, radius, origin=None, bridges=None
 ) -> DistanceField:
     """Evaluate the signed distance f on the grid vertices near the data.
 
@@ -70,22 +71,39 @@ def signed_distance(
     centroids = as_points(centroids, "centroids")
     normals = as_points(normals, "normals")
     cube_size = positive(cube_size, "cube_size")
-    radius = positive(radius, "radius")
+    radius = positive_per_row(radius, "radius", centroids.shape[0])
     origin = np.zeros(3) if origin is None else as_vector3(origin, "origin")
 
-    vertex_keys = _band_vertices(centroids, origin, cube_size, radius)
+    if bridges is None:
+        bridges = np.zeros((0, 3))
+    bridges = np.asarray(bridges, dtype=np.float64).reshape(-1, 3)
+    bridge_reach = BRIDGE_REACH * float(radius.min(initial=np.inf))
+    vertex_keys = _band_vertices(
+        np.concatenate([centroids, bridges]),
+        origin,
+        cube_size,
+        np.concatenate([radius, np.full(bridges.shape[0], bridge_reach)]),
+    )
     ijk = _lattice.decode(vertex_keys)
     positions = origin + cube_size * ijk
     _, nearest = build_tree(centroids).query(positions, k=CANDIDATES, workers=-1)
     data_tree = build_tree(points)
+    bridge_tree = build_tree(bridges) if bridges.shape[0] else None
     values = np.full(positions.shape[0], np.nan)
     pending = np.arange(positions.shape[0])
     for rank in range(CANDIDATES):
         plane = nearest[pending, rank]
         f = np.einsum("ij,ij->i", positions[pending] - centroids[plane], normals[plane])
         feet = positions[pending] - f[:, None] * normals[plane]
-        foot_distance, _ = data_tree.query(feet, distance_upper_bound=radius, workers=-1)
-        found = np.isfinite(foot_distance)
+        reach = radius[plane]
+        foot_distance, _ = data_tree.query(
+            feet, distance_upper_bound=float(reach.max(initial=0.0)), workers=-1
+        )
+        found = foot_distance <= reach
+        if bridge_tree is not None:
+            found[~found] = np.isfinite(
+                bridge_tree.query(feet[~found], distance_upper_bound=bridge_reach, workers=-1)[0]
+            )
         values[pending[found]] = f[found]
         pending = pending[~found]
     margin = ZERO_NUDGE * cube_size
@@ -93,12 +111,15 @@ def signed_distance(
     return DistanceField(vertices_ijk=ijk, values=values, origin=origin, cube_size=cube_size)
 
 
-def _band_vertices(centroids: np.ndarray, origin: np.ndarray, cube_size: float, radius: float):
-    """Sorted (V,) int64 keys of the corners of every cube near a centroid."""
-    cells = np.floor((centroids - origin) / cube_size).astype(np.int64)
-    cell_keys = np.unique(_lattice.encode(cells))
-    reach = max(1, math.ceil(radius / cube_size))
-    steps = np.arange(-reach, reach + 1)
-    dilation = np.stack(np.meshgrid(steps, steps, steps, indexing="ij"), axis=-1).reshape(-1, 3)
-    band = np.unique((cell_keys[:, None] + _lattice.offset_keys(dilation)[None, :]).reshape(-1))
+def _band_vertices(centroids: np.ndarray, origin: np.ndarray, cube_size: float, radius):
+    """Sorted (V,) int64 keys of the corners of every cube within `radius` (M,) of a centroid."""
+    cell_keys = _lattice.encode(np.floor((centroids - origin) / cube_size).astype(np.int64))
+    reach = np.maximum(1, np.ceil(radius / cube_size).astype(np.int64))
+    bands = []
+    for r in np.unique(reach):
+        steps = np.arange(-r, r + 1)
+        dilation = np.stack(np.meshgrid(steps, steps, steps, indexing="ij"), -1).reshape(-1, 3)
+        cells = np.unique(cell_keys[reach == r])
+        bands.append((cells[:, None] + _lattice.offset_keys(dilation)[None, :]).reshape(-1))
+    band = np.unique(np.concatenate(bands))
     return np.unique((band[:, None] + _lattice.offset_keys(CORNER_OFFSETS)[None, :]).reshape(-1))

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from ._kernels.normals import centroid_covariance
-from ._validate import as_points, positive
+from ._validate import as_points, positive, positive_per_row
 from .neighbours import knn
 from .types import Neighbourhoods, TangentPlanes
 
@@ -60,7 +60,7 @@ def tangent_planes(
     (500, 3)
     """
     points = as_points(points)
-    radius = positive(radius, "radius")
+    radius = positive_per_row(radius, "radius", points.shape[0])
     k_max = positive(k_max, "k_max", integer=True)
     k_min = min(positive(k_min, "k_min", integer=True), k_max)
     if neighbours is None:

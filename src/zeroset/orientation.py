@@ -92,7 +92,8 @@ def orient_normals(
     rows = np.broadcast_to(np.arange(n)[:, None], cols.shape)
     valid = cols >= 0
     if max_edge is not None:
-        valid &= neighbours.distances[:, 1:k] <= positive(max_edge, "max_edge")
+        max_edge = np.broadcast_to(np.asarray(max_edge, dtype=np.float64), (n,))
+        valid &= neighbours.distances[:, 1:k] <= max_edge[:, None]
     rows, cols = rows[valid], cols[valid]
     # Cost 1 - |n_i . n_j|, shifted off zero because sparse graphs drop zero weights.
     cost = 1.0 - np.abs(np.einsum("ij,ij->i", normals[rows], normals[cols])) + 1e-9
@@ -142,9 +143,9 @@ def _bridges(centroids, normals, component, reach) -> sparse.csr_matrix:
     main = np.flatnonzero(component == largest)
     others = np.flatnonzero(component != largest)
     distance, nearest = build_tree(centroids[main]).query(
-        centroids[others], distance_upper_bound=reach, workers=-1
+        centroids[others], distance_upper_bound=float(reach[others].max()), workers=-1
     )
-    found = np.isfinite(distance)
+    found = distance <= reach[others]
     # The closest pair of each component.
     order = np.lexsort((distance[found], component[others[found]]))
     first = np.ones(order.size, dtype=bool)

@@ -101,11 +101,8 @@ def estimate_parameters(
     min_neighbours = positive(min_neighbours, "min_neighbours", integer=True)
     tree = build_tree(points) if tree is None else tree
     n = points.shape[0]
-    rows = (
-        np.arange(n)
-        if n <= max_samples
-        else np.sort(require_rng(rng).choice(n, max_samples, replace=False))
-    )
+    # A seeded random order: the first rows of it are spread over the whole cloud.
+    rows = require_rng(rng).permutation(n)[:max_samples]
     kk = min(k + 1, n)
     distances, indices = tree.query(points[rows], k=kk, workers=-1)
     kth = distances[:, -1]

@@ -11,6 +11,7 @@ from ._progress import Stages
 from ._validate import as_points
 from .config import ReconstructionConfig
 from .contour import marching_cubes, method_of_cubes
+from .density import gap_bridges, point_radii, range_noise
 from .distance import signed_distance
 from .errors import InputError, ReconstructionError
 from .neighbours import knn, restrict, spatial_order
@@ -35,6 +36,7 @@ STAGES = (
     "contour",
 )
 OPTIMIZE_STAGE = "optimize"
+WIDE_K = 32
 #: Largest coordinate magnitude and smallest extent accepted: squared distances between
 #: points then stay far from float64's overflow (1.8e308) and underflow (2.2e-308).
 MAX_COORDINATE = 1e100
@@ -173,14 +175,25 @@ def reconstruct(
                 per_point = () if viewpoints is None or viewpoints.ndim == 1 else (viewpoints,)
                 phase1, *averaged = average_in_cells(local, parameters.averaging_cell, *per_point)
                 viewpoints = averaged[0] if averaged else viewpoints
-            neighbours = knn(phase1, config.k_max)
+            neighbours = knn(phase1, max(config.k_max, WIDE_K))
+            noise = parameters.noise
+            if viewpoints is not None:
+                noise, model = range_noise(phase1, neighbours, viewpoints, noise=noise)
+                stats["noise_model"] = {"intercept": model[0], "slope": model[1]}
+            radii = point_radii(
+                phase1,
+                neighbours,
+                rho_delta=parameters.rho_delta,
+                margin=config.noise_factor * noise,
+            )
         with stages.stage("outliers"):
-            keep = drop_outliers(neighbours, parameters.rho_delta, parameters.min_neighbours)
+            keep = drop_outliers(neighbours, radii, parameters.min_neighbours)
             stats["outliers"] = int(np.count_nonzero(~keep))
-            phase1, neighbours = phase1[keep], restrict(neighbours, keep)
+            phase1, neighbours, radii = phase1[keep], restrict(neighbours, keep), radii[keep]
             if viewpoints is not None and viewpoints.ndim == 2:
                 viewpoints = viewpoints[keep]
             stats["phase1_points"] = phase1.shape[0]
+            stats["widened_radii"] = int(np.count_nonzero(radii > parameters.rho_delta))
             if phase1.shape[0] < config.k_max:
                 raise ReconstructionError(
                     f"only {phase1.shape[0]} points are left after removing {stats['outliers']} "
@@ -190,7 +203,7 @@ def reconstruct(
         with stages.stage("tangent planes"):
             planes = tangent_planes(
                 phase1,
-                radius=parameters.rho_delta,
+                radius=radii,
                 k_min=config.k_min,
                 k_max=config.k_max,
                 neighbours=neighbours,
@@ -200,18 +213,21 @@ def reconstruct(
                 planes.centroids,
                 planes.normals,
                 k=config.orient_k,
-                max_edge=2.0 * parameters.rho_delta,
+                max_edge=2.0 * radii,
                 neighbours=neighbours,
                 viewpoints=viewpoints,
             )
             stats["orientation_components"] = orientation.n_components
         with stages.stage("signed distance"):
+            bridges = gap_bridges(phase1, neighbours, rho_delta=parameters.rho_delta)
+            stats["gap_bridge_points"] = bridges.shape[0]
             field_ = signed_distance(
                 local,
                 planes.centroids,
                 orientation.normals,
                 cube_size=parameters.cube_size,
-                radius=parameters.rho_delta,
+                radius=radii,
+                bridges=bridges,
             )
             stats["grid_vertices"] = int(field_.values.size)
             stats["undefined_grid_vertices"] = int(np.count_nonzero(np.isnan(field_.values)))

@@ -360,4 +360,5 @@ def drop_outliers(neighbours: Neighbourhoods, radius: float, min_neighbours: int
     `neighbours` must have more than `min_neighbours` columns.
     """
     others = neighbours.distances[:, 1:]
+    radius = np.asarray(radius, dtype=np.float64).reshape(-1, 1)
     return np.count_nonzero(others <= radius, axis=1) >= min_neighbours

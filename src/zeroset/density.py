@@ -1,0 +1,206 @@
+"""Local sampling density: the neighbourhood radius each point needs (laser scans).
+
+A rotating laser scanner samples unevenly: points lie millimetres apart along a scan line
+and centimetres apart between lines, and both spacings grow with range. One radius for the
+whole cloud is either too small where the scan is sparse (the surface tears) or too large
+where it is dense. Each point instead gets the radius that reaches neighbours on most sides
+of it, never less than the cloud's rho+delta.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ._kernels.normals import centroid_covariance
+from .neighbours import build_tree
+
+__all__ = [
+    "SECTORS",
+    "SECTORS_NEEDED",
+    "gap_bridges",
+    "point_radii",
+    "range_noise",
+    "sector_radius",
+]
+
+#: Directions around a point, and how many must hold a neighbour within the spacing.
+SECTORS = 8
+SECTORS_NEEDED = 6
+#: Largest per-point radius, over the cloud's rho+delta: sparser points are left to tear
+#: rather than bridged by planes fitted over tens of spacings.
+RADIUS_CAP = 2.0
+#: Nearest neighbours (the point included) whose median spacing is the point's.
+SMOOTH_K = 16
+#: Range bins of equal count whose median plane residuals fit the noise model.
+RANGE_BINS = 10
+#: Longest chord across a gap, over the cloud's rho+delta.
+BRIDGE_LENGTH = 3.5
+#: Neighbours searched around a point whose nearest ones leave directions empty.
+EDGE_K = 256
+
+
+def _sector_nearest(points, indices, distances) -> tuple[np.ndarray, np.ndarray]:
+    """Nearest neighbour in each of SECTORS directions around each row: (R, SECTORS) distance
+    (inf for none) and column (-1 for none).
+
+    Directions are angular sectors in the plane of the neighbourhood's two largest principal
+    axes.
+    """
+    n_rows, k = indices.shape
+    valid = np.isfinite(distances)
+    indices = np.where(valid, indices, -1).astype(np.int64)
+    _, covariances, _ = centroid_covariance(points, indices, distances, np.full(n_rows, np.inf))
+    axes = np.linalg.eigh(covariances)[1]
+    offsets = points[indices[:, 1:]] - points[indices[:, :1]]
+    angle = np.arctan2(
+        np.einsum("rkd,rd->rk", offsets, axes[:, :, 1]),
+        np.einsum("rkd,rd->rk", offsets, axes[:, :, 2]),
+    )
+    sector = np.floor((angle + np.pi) / (2.0 * np.pi) * SECTORS).astype(np.int64) % SECTORS
+    # Columns ascend in distance, so the first column of each (row, sector) is its nearest.
+    flat = np.where(valid[:, 1:], np.arange(n_rows)[:, None] * SECTORS + sector, -1).ravel()
+    column = np.broadcast_to(np.arange(1, k), (n_rows, k - 1)).ravel()
+    nearest_column = np.full(n_rows * SECTORS, -1)
+    keep = flat >= 0
+    nearest_column[flat[keep][::-1]] = column[keep][::-1]
+    nearest_column = nearest_column.reshape(n_rows, SECTORS)
+    found = nearest_column >= 0
+    rows = np.broadcast_to(np.arange(n_rows)[:, None], found.shape)
+    distance = np.where(found, distances[rows, np.maximum(nearest_column, 0)], np.inf)
+    return distance, nearest_column
+
+
+def sector_radius(points, indices, distances, needed: int = SECTORS_NEEDED) -> np.ndarray:
+    """Radius (R,) reaching neighbours in `needed` of SECTORS directions around each row.
+
+    Directions are angular sectors in the plane of the neighbourhood's two largest principal
+    axes. The radius is inf where fewer sectors hold one of the row's neighbours: the point
+    lies on a boundary, or its neighbourhood is too small to tell.
+
+    Parameters
+    ----------
+    points : (N, 3) float64
+    indices : (R, k) int64
+        Nearest neighbours of R points, each row's point first.
+    distances : (R, k) float64
+        Their distances, ascending; inf for none.
+    needed : int
+        Directions that must hold a neighbour, at most SECTORS.
+    """
+    distance, _ = _sector_nearest(points, indices, distances)
+    return np.sort(distance, axis=1)[:, needed - 1]
+
+
+def point_radii(points, neighbours, *, rho_delta: float, margin) -> np.ndarray:
+    """Neighbourhood radius (N,) of every point: the spacing around it plus the noise margin.
+
+    The spacing is the `sector_radius` of the point's neighbourhood, smoothed by the median
+    over its neighbours so that one odd neighbourhood does not stand out. The radius is
+    that spacing plus `margin` (delta), at least `rho_delta`; where it would exceed
+    ``RADIUS_CAP rho_delta`` the point keeps `rho_delta` (it is an outlier or lies at an edge).
+
+    Parameters
+    ----------
+    points : (N, 3) float64
+    neighbours : Neighbourhoods
+        Nearest neighbours of every point, itself first (32 or more columns reach across
+        the gaps between scan lines).
+    rho_delta : float
+        The cloud's radius: the smallest one returned.
+    margin : float or (N,) float64
+        delta, the noise margin added to the spacing.
+    """
+    spacing = sector_radius(points, neighbours.indices, neighbours.distances)
+    columns = neighbours.indices[:, :SMOOTH_K]
+    spacing = np.nanmedian(np.where(columns >= 0, spacing[columns], np.nan), axis=1)
+    radii = spacing + margin
+    return np.where(radii <= RADIUS_CAP * rho_delta, np.maximum(radii, rho_delta), rho_delta)
+
+
+def gap_bridges(points, neighbours, *, rho_delta: float, tree=None) -> np.ndarray:
+    """Points (B, 3) along the chords that cross narrow gaps in the sampling.
+
+    A scan's sampling can leave gaps wider than the cloud's radius between well-sampled
+    bands (far down a pipe, each ring of beams is smeared by range noise into a band). A
+    point at the edge of a band has a direction with no neighbour within rho_delta; where
+    the nearest point in that direction lies within ``BRIDGE_LENGTH rho_delta``, the chord
+    to it crosses a gap, and points are placed along it every rho_delta / 2. The signed
+    distance counts the surface as defined near them. Chords are straight: a round hole
+    keeps its centre, which only chords longer than the limit cross, so holes wider than
+    about ``BRIDGE_LENGTH rho_delta`` stay open, as do open ends (nothing lies beyond).
+
+    Parameters
+    ----------
+    points : (N, 3) float64
+    neighbours : Neighbourhoods
+        Nearest neighbours of every point, itself first.
+    rho_delta : float
+    tree : cKDTree, optional
+        A tree over `points`, to reuse one already built.
+    """
+    edge = np.flatnonzero(
+        ~np.isfinite(sector_radius(points, neighbours.indices, neighbours.distances, SECTORS))
+    )
+    if edge.size == 0:
+        return np.zeros((0, 3))
+    tree = build_tree(points) if tree is None else tree
+    distances, indices = tree.query(
+        points[edge],
+        k=min(EDGE_K, points.shape[0]),
+        distance_upper_bound=BRIDGE_LENGTH * rho_delta,
+        workers=-1,
+    )
+    length, column = _sector_nearest(points, indices, distances)
+    gap = np.isfinite(length) & (length > rho_delta)
+    rows, sectors = np.nonzero(gap)
+    start = points[edge[rows]]
+    end = points[indices[rows, column[rows, sectors]]]
+    steps = np.ceil(length[rows, sectors] / (0.5 * rho_delta)).astype(np.int64)
+    chord = np.repeat(np.arange(rows.size), steps - 1)
+    fraction = (np.arange(chord.size) - np.repeat(np.cumsum(steps - 1) - (steps - 1), steps - 1)
+                + 1) / np.repeat(steps, steps - 1)
+    return start[chord] + fraction[:, None] * (end[chord] - start[chord])
+
+
+def range_noise(points, neighbours, viewpoints, *, noise: float) -> tuple[np.ndarray, tuple]:
+    """Noise level (N,) of every point as a straight-line function of its range.
+
+    A laser's noise grows with range. The RMS distance of each point's neighbourhood from
+    its best-fit plane is measured, its median taken in RANGE_BINS bins of equal count, and
+    ``sigma(r) = a + b r`` fitted to the medians (least squares, b >= 0). No point gets less
+    than half the cloud's `noise`.
+
+    Parameters
+    ----------
+    points : (N, 3) float64
+    neighbours : Neighbourhoods
+        Nearest neighbours of every point, itself first (the first 16 columns are used).
+    viewpoints : (3,) or (N, 3) float64
+        Sensor position, one for all or one per point.
+    noise : float
+        The cloud's noise level (`Parameters.noise`).
+
+    Returns
+    -------
+    sigma : (N,) float64
+    model : (a, b)
+        Intercept (data units) and slope (per unit of range).
+    """
+    indices = np.ascontiguousarray(neighbours.indices[:, :SMOOTH_K])
+    distances = np.ascontiguousarray(neighbours.distances[:, :SMOOTH_K])
+    _, covariances, counts = centroid_covariance(
+        points, indices, distances, np.full(points.shape[0], np.inf)
+    )
+    residual = np.sqrt(
+        np.linalg.eigvalsh(covariances)[:, 0].clip(min=0.0) * counts / np.maximum(counts - 3, 1)
+    )
+    ranges = np.linalg.norm(points - viewpoints, axis=1)
+    order = np.argsort(ranges)
+    bins = np.array_split(order, min(RANGE_BINS, points.shape[0]))
+    centre = np.array([np.median(ranges[b]) for b in bins])
+    level = np.array([np.median(residual[b]) for b in bins])
+    slope, intercept = np.polyfit(centre, level, 1)
+    if slope < 0.0:
+        slope, intercept = 0.0, float(np.mean(level))
+    sigma = np.maximum(intercept + slope * ranges, 0.5 * noise)
+    return sigma, (float(intercept), float(slope))

@@ -1,0 +1,90 @@
+"""Per-point radii, gap bridges and the range noise model on planes with known sampling."""
+
+import numpy as np
+
+from zeroset.density import RADIUS_CAP, gap_bridges, point_radii, range_noise
+from zeroset.distance import signed_distance
+from zeroset.neighbours import knn
+
+
+def _grid(xs, ys, rng, noise=0.0):
+    x, y = np.meshgrid(xs, ys)
+    points = np.c_[x.ravel(), y.ravel(), np.zeros(x.size)]
+    return points + rng.normal(0.0, noise, points.shape) if noise else points
+
+
+def _banded(rng):
+    """A plane sampled every 5 mm in bands 10 mm wide, with 40 mm gaps between the bands."""
+    band = np.arange(0.0, 0.015, 0.005)
+    ys = np.concatenate([start + band for start in np.arange(0.0, 0.5, 0.05)])
+    return _grid(np.arange(0.0, 0.5, 0.005), ys, rng, noise=0.0005)
+
+
+def test_radius_grows_where_the_sampling_is_sparse(rng):
+    dense = _grid(np.arange(0.0, 0.3, 0.01), np.arange(0.0, 0.6, 0.01), rng)
+    sparse = _grid(np.arange(0.3, 0.6, 0.025), np.arange(0.0, 0.6, 0.025), rng)
+    points = np.concatenate([dense, sparse])
+    radii = point_radii(points, knn(points, 32), rho_delta=0.02, margin=0.001)
+    inner = (np.abs(points[:, 1] - 0.3) < 0.2) & (np.abs(points[:, 0] - 0.3) > 0.1)
+    assert np.all(radii[inner & (points[:, 0] < 0.3)] == 0.02)
+    sparse_radii = radii[inner & (points[:, 0] > 0.3)]
+    # Six of eight directions reach a neighbour at the diagonal, 25 sqrt(2) mm.
+    np.testing.assert_allclose(np.median(sparse_radii), 0.025 * np.sqrt(2) + 0.001, rtol=0.05)
+    assert radii.max() <= RADIUS_CAP * 0.02
+
+
+def test_gaps_between_bands_are_bridged_and_the_field_is_defined_across_them(rng):
+    points = _banded(rng)
+    rho_delta = 0.015
+    bridges = gap_bridges(points, knn(points, 32), rho_delta=rho_delta)
+    assert not np.any((points[:, 1] + 0.005) % 0.05 > 0.018)  # no data point in a gap
+    middle = np.abs(bridges[:, 1] % 0.05 - 0.03) < 0.005
+    inside = (bridges[:, 0] > 0.05) & (bridges[:, 0] < 0.45) & (bridges[:, 1] < 0.45)
+    # Every gap, all along its length, holds bridge points near its middle line.
+    for start in np.arange(0.0, 0.45, 0.05):
+        row = bridges[middle & inside & (np.abs(bridges[:, 1] - start - 0.03) < 0.005)]
+        assert np.all(np.diff(np.sort(np.r_[0.05, row[:, 0], 0.45])) < 0.02)
+    normals = np.tile([0.0, 0.0, 1.0], (points.shape[0], 1))
+    without = signed_distance(points, points, normals, cube_size=0.01, radius=rho_delta)
+    with_bridges = signed_distance(
+        points, points, normals, cube_size=0.01, radius=rho_delta, bridges=bridges
+    )
+    for field, expect_defined in ((without, False), (with_bridges, True)):
+        x, y, z = field.positions.T
+        # 20 mm from the data on either side, farther than rho_delta.
+        inside = (x > 0.1) & (x < 0.4) & (y > 0.0) & (y < 0.45)
+        gap_middle = inside & (np.abs(y % 0.05 - 0.03) < 0.001)
+        on_plane = gap_middle & (np.abs(z) < 0.011)
+        assert on_plane.sum() > 50
+        assert np.all(np.isfinite(field.values[on_plane]) == expect_defined)
+
+
+def test_round_holes_and_open_ends_get_no_bridge_across(rng):
+    points = _grid(np.arange(0.0, 1.0, 0.01), np.arange(0.0, 1.0, 0.01), rng, noise=0.001)
+    centre = np.array([0.5, 0.5, 0.0])
+    points = points[np.linalg.norm(points - centre, axis=1) > 0.05]
+    rho_delta = 0.025  # the hole is 4 rho_delta wide
+    bridges = gap_bridges(points, knn(points, 32), rho_delta=rho_delta)
+    assert np.all(np.linalg.norm(bridges - centre, axis=1) > 0.02)
+    # Beyond the sampled square there is nothing to bridge to.
+    assert np.all((bridges[:, :2] > -0.005) & (bridges[:, :2] < 0.995))
+
+
+def test_range_noise_recovers_noise_growing_with_range(rng):
+    points = _grid(np.arange(-2.0, 2.0, 0.01), np.arange(-2.0, 2.0, 0.01), rng)
+    viewpoint = np.array([0.0, 0.0, 0.5])
+    ranges = np.linalg.norm(points - viewpoint, axis=1)
+    truth = 0.001 + 0.002 * ranges
+    noisy = points + np.c_[np.zeros((points.shape[0], 2)), rng.normal(0.0, truth)]
+    sigma, (intercept, slope) = range_noise(noisy, knn(noisy, 16), viewpoint, noise=0.003)
+    # Plane fits over 16 points absorb a little of the noise.
+    np.testing.assert_allclose(slope, 0.002, rtol=0.25)
+    np.testing.assert_allclose(np.median(sigma / truth), 1.0, atol=0.2)
+    assert sigma[ranges > 1.8].mean() > 2.0 * sigma[ranges < 0.8].mean()
+
+
+def test_range_noise_has_no_negative_slope(rng):
+    points = _grid(np.arange(-1.0, 1.0, 0.01), np.arange(-1.0, 1.0, 0.01), rng, noise=0.002)
+    sigma, (_, slope) = range_noise(points, knn(points, 16), np.array([0.0, 0.0, 0.3]), noise=0.002)
+    assert slope >= 0.0
+    assert np.all(sigma >= 0.001)
