@@ -34,7 +34,8 @@ def signed_distance(
     point: there the data say nothing, so holes and open ends stay open. Where the nearest
     plane's foot point fails that test, the next nearest planes are tried (up to
     ``CANDIDATES``), so one badly fitted plane does not punch a hole. Only the cubes
-    within `radius` of a centroid and their neighbours are evaluated, never the bounding box.
+    within `radius` of a centroid or a bridge point and their neighbours are evaluated,
+    never the bounding box.
 
     Parameters
     ----------
@@ -46,10 +47,14 @@ def signed_distance(
         Consistently oriented unit normals n_i.
     cube_size : float
         Lattice spacing, in data units.
-    radius : float
-        rho+delta: the largest distance from a foot point to the data.
+    radius : float or (M,) array_like of float
+        rho+delta, one for all planes or one per plane (`zeroset.density.point_radii`): the
+        largest distance from a plane's foot points to the data.
     origin : (3,) array_like of float, optional
         Lattice origin; zero by default, so clouds in one frame share one lattice.
+    bridges : (B, 3) array_like of float, optional
+        Points along chords across gaps in the sampling (`zeroset.density.gap_bridges`): a
+        foot point within ``BRIDGE_REACH`` times the smallest radius of one is near the data.
 
     Returns
     -------

@@ -31,8 +31,8 @@ def tangent_planes(
     Parameters
     ----------
     points : (N, 3) array_like of float
-    radius : float
-        Neighbourhood radius rho+delta, in data units.
+    radius : float or (N,) array_like of float
+        Neighbourhood radius rho+delta, in data units, one for all points or one per point.
     k_min, k_max : int
         Smallest and largest neighbourhood, the point included.
     neighbours : Neighbourhoods, optional

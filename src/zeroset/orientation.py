@@ -51,10 +51,11 @@ def orient_normals(
         Unit normals, any sign.
     k : int
         Graph neighbours per centroid, itself included.
-    max_edge : float, optional
-        Longest graph edge. A component left apart is joined to the largest one by its
-        closest pair of points if they lie within twice this distance; farther ones stay
-        separate components.
+    max_edge : float or (N,) array_like of float, optional
+        Longest graph edge, one for all points or one per point (an edge from i is kept if
+        no longer than ``max_edge[i]``). A component left apart is joined to the largest one
+        by its closest pair of points if they lie within twice the max_edge of its point
+        there; farther ones stay separate components.
     neighbours : Neighbourhoods, optional
         Precomputed neighbours to use for the graph (those of the data points serve as
         well as the centroids', thesis §3.2.8).

@@ -6,6 +6,7 @@ import numpy as np
 
 from ._kernels.normals import centroid_covariance
 from ._validate import positive, require_rng
+from .density import SECTORS, SECTORS_NEEDED, sector_radius
 from .errors import InputError, ReconstructionError
 from .neighbours import build_tree
 from .types import Parameters
@@ -15,9 +16,6 @@ __all__ = ["estimate_parameters"]
 #: Points, and neighbours of each, used for the direction-balanced spacing and the noise.
 WIDE_ROWS = 2_000
 WIDE_K = 64
-#: Directions around a point, and how many must hold a neighbour within the spacing.
-SECTORS = 8
-SECTORS_NEEDED = 6
 
 
 def estimate_parameters(
@@ -110,7 +108,11 @@ def estimate_parameters(
         points[rows[:WIDE_ROWS]], k=min(WIDE_K, n), workers=-1
     )
     isotropic = float(np.quantile(kth, quantile))
-    balanced = float(np.quantile(_sector_radius(points, wide_indices, wide_distances), quantile))
+    # A direction with no neighbour among the WIDE_K counts as the farthest one.
+    balanced = np.minimum(
+        sector_radius(points, wide_indices, wide_distances), wide_distances[:, -1]
+    )
+    balanced = float(np.quantile(balanced, quantile))
     spacing = max(isotropic, balanced)
     noise = _plane_residual(points, indices, distances, np.inf)
     if noise_factor > 0.0:
@@ -183,30 +185,3 @@ def _plane_residual(points, indices, distances, radius) -> float:
         np.linalg.eigvalsh(covariances)[:, 0].clip(min=0.0) * counts / np.maximum(counts - 3, 1)
     )
     return float(np.sqrt(np.median(residual)))
-
-
-def _sector_radius(points, indices, distances) -> np.ndarray:
-    """Radius (R,) reaching neighbours in SECTORS_NEEDED of SECTORS directions around each row.
-
-    Directions are angular sectors in the plane of the neighbourhood's two largest principal
-    axes. A sector with no neighbour among the row's columns counts as the farthest one.
-    """
-    n_rows = indices.shape[0]
-    _, covariances, _ = centroid_covariance(
-        points, indices.astype(np.int64), distances, np.full(n_rows, np.inf)
-    )
-    axes = np.linalg.eigh(covariances)[1]
-    offsets = points[indices[:, 1:]] - points[indices[:, :1]]
-    angle = np.arctan2(
-        np.einsum("rkd,rd->rk", offsets, axes[:, :, 1]),
-        np.einsum("rkd,rd->rk", offsets, axes[:, :, 2]),
-    )
-    sector = np.floor((angle + np.pi) / (2.0 * np.pi) * SECTORS).astype(np.int64) % SECTORS
-    nearest = np.full((n_rows, SECTORS), np.inf)
-    np.minimum.at(
-        nearest,
-        (np.repeat(np.arange(n_rows), offsets.shape[1]), sector.ravel()),
-        distances[:, 1:].ravel(),
-    )
-    nearest = np.minimum(nearest, distances[:, -1:])
-    return np.sort(nearest, axis=1)[:, SECTORS_NEEDED - 1]

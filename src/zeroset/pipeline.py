@@ -36,6 +36,7 @@ STAGES = (
     "contour",
 )
 OPTIMIZE_STAGE = "optimize"
+#: Nearest neighbours found per point: enough to reach across the gap between scan lines.
 WIDE_K = 32
 #: Largest coordinate magnitude and smallest extent accepted: squared distances between
 #: points then stay far from float64's overflow (1.8e308) and underflow (2.2e-308).

@@ -353,10 +353,11 @@ def crop(points: np.ndarray, lower, upper) -> np.ndarray:
     return np.all((points >= lower) & (points <= upper), axis=1)
 
 
-def drop_outliers(neighbours: Neighbourhoods, radius: float, min_neighbours: int) -> np.ndarray:
+def drop_outliers(neighbours: Neighbourhoods, radius, min_neighbours: int) -> np.ndarray:
     """Return the (N,) bool mask of points with at least `min_neighbours` others within `radius`.
 
     A point far from all others is an outlier (thesis 3.2.1; Hoppe et al. 1992, §3).
+    `radius` is one float for all points or (N,) floats, one per point.
     `neighbours` must have more than `min_neighbours` columns.
     """
     others = neighbours.distances[:, 1:]
