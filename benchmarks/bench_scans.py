@@ -87,6 +87,14 @@ def clouds(data: Path):
             yield name, Cloud(read_vtk(path), None, None, relative)
 
 
+def _note(cloud: Cloud) -> str:
+    """Where a cloud comes from, for its heading."""
+    if cloud.truth is not None:
+        return "Truth: the pipe wall."
+    sensor = "sensor at the origin" if cloud.viewpoints is not None else "sensor position unknown"
+    return f"`{cloud.note}`, {sensor}."
+
+
 def _cell(row, key: str) -> str:
     """One table cell of a row's metrics."""
     if row.status != "ok":
@@ -100,7 +108,8 @@ def _cell(row, key: str) -> str:
     if key == "distance":
         if "reference" in row.metrics:
             return f"{row.metrics['reference']['accuracy']['mean'] * 1000:.2f}"
-        return f"{row.metrics['points']['distance']['mean'] * 1000:.1f}"
+        distance = row.metrics["points"]["distance"]
+        return f"{distance['mean'] * 1000:.1f} / {distance['median'] * 1000:.1f}"
     if key == "coverage":
         if "reference" in row.metrics:
             return f"{row.metrics['reference']['thresholds'][0]['recall']:.3f}"
@@ -124,12 +133,12 @@ def render(results: dict) -> list[str]:
         *machine_lines(results["machine"]),
         "",
         "Columns: *s* the reconstruction's seconds; *topology* components / boundary loops / "
-        "non-manifold edges; *distance* for the simulated scans the mean distance from the mesh "
-        "to the true pipe (mm), for the real scans the mean distance from the points to the "
-        "mesh (mm); *coverage* for the simulated scans the share of the true pipe within 1 % of "
-        "its diagonal of the mesh (recall; the truth is the whole wall, seen or not), for the "
-        "real scans the share of the points within 1 % of the mesh's diagonal. The true "
-        "pipes have 1 component and 2 boundary loops.",
+        "non-manifold edges; *distance* for the simulated scans the mean distance from the mesh"
+        " to the true pipe (mm), for the real scans the mean / median distance from the points "
+        "to the mesh (mm); *coverage* for the simulated scans the share of the true pipe within"
+        " 1 % of its diagonal of the mesh (recall; the truth is the whole wall, seen or not), "
+        "for the real scans the share of the points within 1 % of the mesh's diagonal. The true"
+        " pipes have 1 component and 2 boundary loops.",
         "",
     ]
     for case in results["cases"]:
@@ -196,17 +205,13 @@ def main(argv: list[str] | None = None) -> int:
             keep_meshes=True,
         )
         case = {"name": name, "points": len(cloud.points), "rows": rows}
-        case["note"] = (
-            f"`{cloud.note}`, sensor at the origin." if cloud.viewpoints is not None else ""
-        ) if cloud.truth is None else "Truth: the pipe wall."
-        if cloud.truth is None and cloud.viewpoints is None:
-            case["note"] = f"`{cloud.note}`, sensor position unknown."
+        case["note"] = _note(cloud)
         if "zeroset" in meshes:
             image = args.images / f"scans-{name}.png"
             picture(image, cloud, *meshes["zeroset"])
             case["image"] = f"images/{image.name}"
         results["cases"].append(case)
-    replace_section(args.output, "scans", render(results))
+    replace_section(args.output, "scans", "\n".join(render(results)))
     print(f"wrote {args.output} in {time.perf_counter() - started:.0f} s", flush=True)
     return 0
 
