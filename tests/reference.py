@@ -53,3 +53,19 @@ def closest_points_on_mesh(points, vertices, faces, degenerate):
         better = distance < best
         best[better], closest[better], face[better] = distance[better], foot[better], f
     return closest, face, best
+
+
+def sector_nearest(points, indices, distances, u, v, sectors):
+    """Nearest neighbour per direction, vectorised over rows and columns."""
+    n, k = indices.shape
+    valid = (indices[:, 1:] >= 0) & np.isfinite(distances[:, 1:])
+    offsets = points[indices[:, 1:]] - points[indices[:, :1]]
+    angle = np.arctan2(np.einsum("rkd,rd->rk", offsets, v), np.einsum("rkd,rd->rk", offsets, u))
+    sector = np.floor((angle + np.pi) / (2.0 * np.pi) * sectors).astype(np.int64) % sectors
+    nearest = np.full((n, sectors), np.inf)
+    column = np.full((n, sectors), -1, dtype=np.int64)
+    for i, c in zip(*np.nonzero(valid), strict=True):
+        s = sector[i, c]
+        if column[i, s] < 0:
+            nearest[i, s], column[i, s] = distances[i, c + 1], c + 1
+    return nearest, column

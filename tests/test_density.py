@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from zeroset.density import RADIUS_CAP, gap_bridges, point_radii, range_noise
+from zeroset.density import RADIUS_CAP, gap_bridges, point_radii, range_noise, sector_distances
 from zeroset.distance import signed_distance
 from zeroset.neighbours import knn
 
@@ -11,6 +11,11 @@ def _grid(xs, ys, rng, noise=0.0):
     x, y = np.meshgrid(xs, ys)
     points = np.c_[x.ravel(), y.ravel(), np.zeros(x.size)]
     return points + rng.normal(0.0, noise, points.shape) if noise else points
+
+
+def _sectors(points):
+    neighbours = knn(points, 32)
+    return sector_distances(points, neighbours.indices, neighbours.distances)[0]
 
 
 def _banded(rng):
@@ -24,7 +29,9 @@ def test_radius_grows_where_the_sampling_is_sparse(rng):
     dense = _grid(np.arange(0.0, 0.3, 0.01), np.arange(0.0, 0.6, 0.01), rng)
     sparse = _grid(np.arange(0.3, 0.6, 0.025), np.arange(0.0, 0.6, 0.025), rng)
     points = np.concatenate([dense, sparse])
-    radii = point_radii(points, knn(points, 32), rho_delta=0.02, margin=0.001)
+    neighbours = knn(points, 32)
+    sectors, _ = sector_distances(points, neighbours.indices, neighbours.distances)
+    radii = point_radii(sectors, neighbours, rho_delta=0.02, margin=0.001)
     inner = (np.abs(points[:, 1] - 0.3) < 0.2) & (np.abs(points[:, 0] - 0.3) > 0.1)
     assert np.all(radii[inner & (points[:, 0] < 0.3)] == 0.02)
     sparse_radii = radii[inner & (points[:, 0] > 0.3)]
@@ -36,7 +43,7 @@ def test_radius_grows_where_the_sampling_is_sparse(rng):
 def test_gaps_between_bands_are_bridged_and_the_field_is_defined_across_them(rng):
     points = _banded(rng)
     rho_delta = 0.015
-    bridges = gap_bridges(points, knn(points, 32), rho_delta=rho_delta)
+    bridges = gap_bridges(points, _sectors(points), rho_delta=rho_delta)
     assert not np.any((points[:, 1] + 0.005) % 0.05 > 0.018)  # no data point in a gap
     middle = np.abs(bridges[:, 1] % 0.05 - 0.03) < 0.005
     inside = (bridges[:, 0] > 0.05) & (bridges[:, 0] < 0.45) & (bridges[:, 1] < 0.45)
@@ -64,7 +71,7 @@ def test_round_holes_and_open_ends_get_no_bridge_across(rng):
     centre = np.array([0.5, 0.5, 0.0])
     points = points[np.linalg.norm(points - centre, axis=1) > 0.05]
     rho_delta = 0.025  # the hole is 4 rho_delta wide
-    bridges = gap_bridges(points, knn(points, 32), rho_delta=rho_delta)
+    bridges = gap_bridges(points, _sectors(points), rho_delta=rho_delta)
     assert np.all(np.linalg.norm(bridges - centre, axis=1) > 0.02)
     # Beyond the sampled square there is nothing to bridge to.
     assert np.all((bridges[:, :2] > -0.005) & (bridges[:, :2] < 0.995))

@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from tests import reference
+from zeroset._kernels import density as density_kernels
 from zeroset._kernels import evaluate as evaluate_kernels
 from zeroset._kernels import normals as normals_kernels
 from zeroset._kernels import optimize as optimize_kernels
@@ -49,7 +50,18 @@ def _triangle_soup_inputs(rng):
     return points, corners.reshape(-1, 3), np.arange(3 * n).reshape(n, 3), degenerate
 
 
+def _sector_inputs(rng):
+    points, indices, distances, _ = _neighbourhood_inputs(rng)
+    distances[indices < 0] = np.inf
+    u = rng.normal(size=(300, 3))
+    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    v = np.cross(u, rng.normal(size=(300, 3)))
+    v /= np.linalg.norm(v, axis=1, keepdims=True)
+    return points, indices, distances, u, v, 8
+
+
 COMPARISONS = [
+    (density_kernels.sector_nearest, reference.sector_nearest, _sector_inputs),
     (normals_kernels.centroid_covariance, reference.centroid_covariance, _neighbourhood_inputs),
     (orientation_kernels.propagate_signs, reference.propagate_signs, _tree_inputs),
     (

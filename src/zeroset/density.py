@@ -4,13 +4,16 @@ A rotating laser scanner samples unevenly: points lie millimetres apart along a 
 and centimetres apart between lines, and both spacings grow with range. One radius for the
 whole cloud is either too small where the scan is sparse (the surface tears) or too large
 where it is dense. Each point instead gets the radius that reaches neighbours on most sides
-of it, never less than the cloud's rho+delta.
+of it, never less than the cloud's rho+delta (`point_radii`), with a noise margin that grows
+with range where the sensor positions are known (`range_noise`). Gaps between well-sampled
+bands, which no point's own neighbourhood sees, are crossed by chords (`gap_bridges`).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from ._kernels.density import sector_nearest
 from ._kernels.normals import centroid_covariance
 from .neighbours import build_tree
 
@@ -20,14 +23,15 @@ __all__ = [
     "gap_bridges",
     "point_radii",
     "range_noise",
+    "sector_distances",
     "sector_radius",
 ]
 
 #: Directions around a point, and how many must hold a neighbour within the spacing.
 SECTORS = 8
 SECTORS_NEEDED = 6
-#: Largest per-point radius, over the cloud's rho+delta: sparser points are left to tear
-#: rather than bridged by planes fitted over tens of spacings.
+#: Largest per-point radius, over the cloud's rho+delta; a point that would need more is an
+#: outlier or lies at an edge, and keeps rho+delta.
 RADIUS_CAP = 2.0
 #: Nearest neighbours (the point included) whose median spacing is the point's.
 SMOOTH_K = 16
@@ -39,35 +43,41 @@ BRIDGE_LENGTH = 3.5
 EDGE_K = 256
 
 
-def _sector_nearest(points, indices, distances) -> tuple[np.ndarray, np.ndarray]:
-    """Nearest neighbour in each of SECTORS directions around each row: (R, SECTORS) distance
-    (inf for none) and column (-1 for none).
+def sector_distances(points, indices, distances) -> tuple[np.ndarray, np.ndarray]:
+    """Nearest neighbour in each of SECTORS directions around each row.
 
     Directions are angular sectors in the plane of the neighbourhood's two largest principal
     axes.
+
+    Parameters
+    ----------
+    points : (N, 3) float64
+    indices : (R, k) int64
+        Nearest neighbours of R points, each row's point first; -1 for none.
+    distances : (R, k) float64
+        Their distances, ascending; inf for none.
+
+    Returns
+    -------
+    distance : (R, SECTORS) float64
+        Distance to the nearest neighbour in each direction; inf where there is none.
+    column : (R, SECTORS) int64
+        Its column in `indices`; -1 where there is none.
     """
-    n_rows, k = indices.shape
     valid = np.isfinite(distances)
     indices = np.where(valid, indices, -1).astype(np.int64)
+    distances = np.ascontiguousarray(distances, dtype=np.float64)
+    n_rows = indices.shape[0]
     _, covariances, _ = centroid_covariance(points, indices, distances, np.full(n_rows, np.inf))
     axes = np.linalg.eigh(covariances)[1]
-    offsets = points[indices[:, 1:]] - points[indices[:, :1]]
-    angle = np.arctan2(
-        np.einsum("rkd,rd->rk", offsets, axes[:, :, 1]),
-        np.einsum("rkd,rd->rk", offsets, axes[:, :, 2]),
+    return sector_nearest(
+        points,
+        indices,
+        distances,
+        np.ascontiguousarray(axes[:, :, 2]),
+        np.ascontiguousarray(axes[:, :, 1]),
+        SECTORS,
     )
-    sector = np.floor((angle + np.pi) / (2.0 * np.pi) * SECTORS).astype(np.int64) % SECTORS
-    # Columns ascend in distance, so the first column of each (row, sector) is its nearest.
-    flat = np.where(valid[:, 1:], np.arange(n_rows)[:, None] * SECTORS + sector, -1).ravel()
-    column = np.broadcast_to(np.arange(1, k), (n_rows, k - 1)).ravel()
-    nearest_column = np.full(n_rows * SECTORS, -1)
-    keep = flat >= 0
-    nearest_column[flat[keep][::-1]] = column[keep][::-1]
-    nearest_column = nearest_column.reshape(n_rows, SECTORS)
-    found = nearest_column >= 0
-    rows = np.broadcast_to(np.arange(n_rows)[:, None], found.shape)
-    distance = np.where(found, distances[rows, np.maximum(nearest_column, 0)], np.inf)
-    return distance, nearest_column
 
 
 def sector_radius(points, indices, distances, needed: int = SECTORS_NEEDED) -> np.ndarray:
@@ -87,37 +97,38 @@ def sector_radius(points, indices, distances, needed: int = SECTORS_NEEDED) -> n
     needed : int
         Directions that must hold a neighbour, at most SECTORS.
     """
-    distance, _ = _sector_nearest(points, indices, distances)
+    distance, _ = sector_distances(points, indices, distances)
     return np.sort(distance, axis=1)[:, needed - 1]
 
 
-def point_radii(points, neighbours, *, rho_delta: float, margin) -> np.ndarray:
+def point_radii(sectors, neighbours, *, rho_delta: float, margin) -> np.ndarray:
     """Neighbourhood radius (N,) of every point: the spacing around it plus the noise margin.
 
-    The spacing is the `sector_radius` of the point's neighbourhood, smoothed by the median
-    over its neighbours so that one odd neighbourhood does not stand out. The radius is
-    that spacing plus `margin` (delta), at least `rho_delta`; where it would exceed
-    ``RADIUS_CAP rho_delta`` the point keeps `rho_delta` (it is an outlier or lies at an edge).
+    The spacing is the radius reaching neighbours in SECTORS_NEEDED of SECTORS directions,
+    smoothed by the median over the point's SMOOTH_K nearest neighbours so that one odd
+    neighbourhood does not stand out. The radius is that spacing plus `margin` (delta), at
+    least `rho_delta`; where it would exceed ``RADIUS_CAP rho_delta`` the point keeps
+    `rho_delta` (it is an outlier or lies at an edge).
 
     Parameters
     ----------
-    points : (N, 3) float64
+    sectors : (N, SECTORS) float64
+        Distance to the nearest neighbour in each direction (`sector_distances`).
     neighbours : Neighbourhoods
-        Nearest neighbours of every point, itself first (32 or more columns reach across
-        the gaps between scan lines).
+        Nearest neighbours of every point, itself first.
     rho_delta : float
         The cloud's radius: the smallest one returned.
     margin : float or (N,) float64
         delta, the noise margin added to the spacing.
     """
-    spacing = sector_radius(points, neighbours.indices, neighbours.distances)
+    spacing = np.sort(sectors, axis=1)[:, SECTORS_NEEDED - 1]
     columns = neighbours.indices[:, :SMOOTH_K]
-    spacing = np.nanmedian(np.where(columns >= 0, spacing[columns], np.nan), axis=1)
-    radii = spacing + margin
+    columns = np.where(columns >= 0, columns, np.arange(columns.shape[0])[:, None])
+    radii = np.median(spacing[columns], axis=1) + margin
     return np.where(radii <= RADIUS_CAP * rho_delta, np.maximum(radii, rho_delta), rho_delta)
 
 
-def gap_bridges(points, neighbours, *, rho_delta: float, tree=None) -> np.ndarray:
+def gap_bridges(points, sectors, *, rho_delta: float, tree=None) -> np.ndarray:
     """Points (B, 3) along the chords that cross narrow gaps in the sampling.
 
     A scan's sampling can leave gaps wider than the cloud's radius between well-sampled
@@ -132,15 +143,14 @@ def gap_bridges(points, neighbours, *, rho_delta: float, tree=None) -> np.ndarra
     Parameters
     ----------
     points : (N, 3) float64
-    neighbours : Neighbourhoods
-        Nearest neighbours of every point, itself first.
+    sectors : (N, SECTORS) float64
+        Distance to the nearest neighbour in each direction among each point's nearest
+        (`sector_distances`); an inf marks an edge point.
     rho_delta : float
     tree : cKDTree, optional
         A tree over `points`, to reuse one already built.
     """
-    edge = np.flatnonzero(
-        ~np.isfinite(sector_radius(points, neighbours.indices, neighbours.distances, SECTORS))
-    )
+    edge = np.flatnonzero(~np.isfinite(sectors).all(axis=1))
     if edge.size == 0:
         return np.zeros((0, 3))
     tree = build_tree(points) if tree is None else tree
@@ -150,15 +160,16 @@ def gap_bridges(points, neighbours, *, rho_delta: float, tree=None) -> np.ndarra
         distance_upper_bound=BRIDGE_LENGTH * rho_delta,
         workers=-1,
     )
-    length, column = _sector_nearest(points, indices, distances)
+    length, column = sector_distances(points, indices, distances)
     gap = np.isfinite(length) & (length > rho_delta)
     rows, sectors = np.nonzero(gap)
     start = points[edge[rows]]
     end = points[indices[rows, column[rows, sectors]]]
     steps = np.ceil(length[rows, sectors] / (0.5 * rho_delta)).astype(np.int64)
     chord = np.repeat(np.arange(rows.size), steps - 1)
-    fraction = (np.arange(chord.size) - np.repeat(np.cumsum(steps - 1) - (steps - 1), steps - 1)
-                + 1) / np.repeat(steps, steps - 1)
+    fraction = (
+        np.arange(chord.size) - np.repeat(np.cumsum(steps - 1) - (steps - 1), steps - 1) + 1
+    ) / np.repeat(steps, steps - 1)
     return start[chord] + fraction[:, None] * (end[chord] - start[chord])
 
 

@@ -11,7 +11,7 @@ from ._progress import Stages
 from ._validate import as_points
 from .config import ReconstructionConfig
 from .contour import marching_cubes, method_of_cubes
-from .density import gap_bridges, point_radii, range_noise
+from .density import gap_bridges, point_radii, range_noise, sector_distances
 from .distance import signed_distance
 from .errors import InputError, ReconstructionError
 from .neighbours import knn, restrict, spatial_order
@@ -181,8 +181,9 @@ def reconstruct(
             if viewpoints is not None:
                 noise, model = range_noise(phase1, neighbours, viewpoints, noise=noise)
                 stats["noise_model"] = {"intercept": model[0], "slope": model[1]}
+            sectors, _ = sector_distances(phase1, neighbours.indices, neighbours.distances)
             radii = point_radii(
-                phase1,
+                sectors,
                 neighbours,
                 rho_delta=parameters.rho_delta,
                 margin=config.noise_factor * noise,
@@ -190,7 +191,8 @@ def reconstruct(
         with stages.stage("outliers"):
             keep = drop_outliers(neighbours, radii, parameters.min_neighbours)
             stats["outliers"] = int(np.count_nonzero(~keep))
-            phase1, neighbours, radii = phase1[keep], restrict(neighbours, keep), radii[keep]
+            phase1, neighbours = phase1[keep], restrict(neighbours, keep)
+            radii, sectors = radii[keep], sectors[keep]
             if viewpoints is not None and viewpoints.ndim == 2:
                 viewpoints = viewpoints[keep]
             stats["phase1_points"] = phase1.shape[0]
@@ -220,7 +222,7 @@ def reconstruct(
             )
             stats["orientation_components"] = orientation.n_components
         with stages.stage("signed distance"):
-            bridges = gap_bridges(phase1, neighbours, rho_delta=parameters.rho_delta)
+            bridges = gap_bridges(phase1, sectors, rho_delta=parameters.rho_delta)
             stats["gap_bridge_points"] = bridges.shape[0]
             field_ = signed_distance(
                 local,
