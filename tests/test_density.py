@@ -2,7 +2,14 @@
 
 import numpy as np
 
-from zeroset.density import RADIUS_CAP, gap_bridges, point_radii, range_noise, sector_distances
+from zeroset.density import (
+    BRIDGE_REACH,
+    RADIUS_CAP,
+    gap_bridges,
+    point_radii,
+    range_noise,
+    sector_distances,
+)
 from zeroset.distance import signed_distance
 from zeroset.neighbours import knn
 
@@ -54,7 +61,13 @@ def test_gaps_between_bands_are_bridged_and_the_field_is_defined_across_them(rng
     normals = np.tile([0.0, 0.0, 1.0], (points.shape[0], 1))
     without = signed_distance(points, points, normals, cube_size=0.01, radius=rho_delta)
     with_bridges = signed_distance(
-        points, points, normals, cube_size=0.01, radius=rho_delta, bridges=bridges
+        points,
+        points,
+        normals,
+        cube_size=0.01,
+        radius=rho_delta,
+        bridges=bridges,
+        bridge_reach=BRIDGE_REACH * rho_delta,
     )
     for field, expect_defined in ((without, False), (with_bridges, True)):
         x, y, z = field.positions.T

@@ -158,6 +158,16 @@ def test_read_xyz_six_columns_are_normals(tmp_path):
     np.testing.assert_array_equal(cloud.normals, normals)
 
 
+def test_read_3dtk_scan_ignores_colour_columns(tmp_path):
+    points, _ = _cloud()
+    colours = np.tile([255.0, 128.0, 0.0], (len(points), 1))
+    path = tmp_path / "scan000.3d"
+    np.savetxt(path, np.hstack([points * 100.0, colours]), fmt="%.17g")
+    cloud = zio.read_points(path)
+    np.testing.assert_array_equal(cloud.points, points * 100.0)
+    assert cloud.normals is None
+
+
 def test_read_csv_with_header(tmp_path):
     points, normals = _cloud()
     path = tmp_path / "scan.csv"
@@ -487,7 +497,7 @@ def test_unknown_suffixes(tmp_path):
     with pytest.raises(
         InputError,
         match=r"scan.xyz2: unknown point format '.xyz2'; "
-        r"supported: .csv, .e57, .las, .laz, .npy, .npz, .pcd, .ply, .pts",
+        r"supported: .3d, .csv, .e57, .las, .laz, .npy, .npz, .pcd, .ply, .pts",
     ):
         zio.read_points(tmp_path / "scan.xyz2")
     with pytest.raises(InputError, match="scan: has no suffix; supported"):

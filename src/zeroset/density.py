@@ -39,6 +39,8 @@ SMOOTH_K = 16
 RANGE_BINS = 10
 #: Longest chord across a gap, over the cloud's rho+delta.
 BRIDGE_LENGTH = 3.5
+#: Reach of a bridge point in the undefined test, over the cloud's rho+delta.
+BRIDGE_REACH = 1.25
 #: Neighbours searched around a point whose nearest ones leave directions empty.
 EDGE_K = 256
 
@@ -136,9 +138,10 @@ def gap_bridges(points, sectors, *, rho_delta: float, tree=None) -> np.ndarray:
     point at the edge of a band has a direction with no neighbour within rho_delta; where
     the nearest point in that direction lies within ``BRIDGE_LENGTH rho_delta``, the chord
     to it crosses a gap, and points are placed along it every rho_delta / 2. The signed
-    distance counts the surface as defined near them. Chords are straight: a round hole
-    keeps its centre, which only chords longer than the limit cross, so holes wider than
-    about ``BRIDGE_LENGTH rho_delta`` stay open, as do open ends (nothing lies beyond).
+    distance counts the surface as defined within ``BRIDGE_REACH rho_delta`` of them.
+    Chords are straight: a round hole keeps its centre, which only chords longer than the
+    limit cross, so holes wider than about ``BRIDGE_LENGTH rho_delta`` stay open, as do
+    open ends (nothing lies beyond).
 
     Parameters
     ----------

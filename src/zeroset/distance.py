@@ -20,12 +20,17 @@ ZERO_NUDGE = 1e-3
 #: single badly fitted plane then cannot open a hole.
 CANDIDATES = 3
 
-#: Reach of a bridge point (see `zeroset.density.gap_bridges`), over the smallest radius.
-BRIDGE_REACH = 1.25
-
 
 def signed_distance(
-    points, centroids, normals, *, cube_size: float, radius, origin=None, bridges=None
+    points,
+    centroids,
+    normals,
+    *,
+    cube_size: float,
+    radius,
+    origin=None,
+    bridges=None,
+    bridge_reach: float | None = None,
 ) -> DistanceField:
     """Evaluate the signed distance f on the grid vertices near the data.
 
@@ -53,8 +58,10 @@ def signed_distance(
     origin : (3,) array_like of float, optional
         Lattice origin; zero by default, so clouds in one frame share one lattice.
     bridges : (B, 3) array_like of float, optional
-        Points along chords across gaps in the sampling (`zeroset.density.gap_bridges`): a
-        foot point within ``BRIDGE_REACH`` times the smallest radius of one is near the data.
+        Points along chords across gaps in the sampling (`zeroset.density.gap_bridges`).
+    bridge_reach : float, optional
+        A foot point within this distance of a bridge point is near the data; needed with
+        `bridges`.
 
     Returns
     -------
@@ -79,10 +86,11 @@ def signed_distance(
     radius = positive_per_row(radius, "radius", centroids.shape[0])
     origin = np.zeros(3) if origin is None else as_vector3(origin, "origin")
 
-    if bridges is None:
+    if bridges is None or np.size(bridges) == 0:
         bridges = np.zeros((0, 3))
-    bridges = np.asarray(bridges, dtype=np.float64).reshape(-1, 3)
-    bridge_reach = BRIDGE_REACH * float(radius.min(initial=np.inf))
+    else:
+        bridges = as_points(bridges, "bridges")
+        bridge_reach = positive(bridge_reach, "bridge_reach")
     vertex_keys = _band_vertices(
         np.concatenate([centroids, bridges]),
         origin,

@@ -11,7 +11,7 @@ from ._progress import Stages
 from ._validate import as_points
 from .config import ReconstructionConfig
 from .contour import marching_cubes, method_of_cubes
-from .density import gap_bridges, point_radii, range_noise, sector_distances
+from .density import BRIDGE_REACH, gap_bridges, point_radii, range_noise, sector_distances
 from .distance import signed_distance
 from .errors import InputError, ReconstructionError
 from .neighbours import knn, restrict, spatial_order
@@ -231,6 +231,7 @@ def reconstruct(
                 cube_size=parameters.cube_size,
                 radius=radii,
                 bridges=bridges,
+                bridge_reach=BRIDGE_REACH * parameters.rho_delta,
             )
             stats["grid_vertices"] = int(field_.values.size)
             stats["undefined_grid_vertices"] = int(np.count_nonzero(np.isnan(field_.values)))

@@ -135,6 +135,7 @@ def format_report(report: dict) -> str:
         + (f"; averaged into {cells:,} cells" if report["parameters"]["averaging_cell"] else "")
         + f"; {stats['outliers']:,} outliers dropped; {stats['phase1_points']:,} fit planes",
         *(f"parameter   {note}" for note in report["parameters"]["notes"]),
+        *_density_lines(stats),
         f"orientation {stats['orientation_components']} component(s)",
         f"grid        {stats['grid_vertices']:,} vertices evaluated, "
         f"{stats['undefined_grid_vertices']:,} undefined",
@@ -153,6 +154,18 @@ def format_report(report: dict) -> str:
         + (f"; peak memory {report['peak_mib']:,.0f} MiB" if "peak_mib" in report else ""),
     ]
     return "\n".join(lines)
+
+
+def _density_lines(stats: dict) -> list[str]:
+    """What the per-point radii, the range noise model and the gap bridges did."""
+    line = (
+        f"density     {stats['widened_radii']:,} radii widened past rho_delta; "
+        f"{stats['gap_bridge_points']:,} gap bridge points"
+    )
+    model = stats.get("noise_model")
+    if model:
+        line += f"; noise = {model['intercept']:.4g} + {model['slope']:.4g} x range"
+    return [line]
 
 
 def _reading_lines(reading: dict | None) -> list[str]:

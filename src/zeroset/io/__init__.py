@@ -36,6 +36,7 @@ __all__ = [
 ]
 
 _POINT_READERS = {
+    ".3d": _text.read_3dtk_points,
     ".csv": _text.read_points,
     ".e57": _e57.read_points,
     ".las": _las.read_points,

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -11,7 +11,7 @@ import numpy as np
 from ..errors import InputError
 from ._sniff import check_content
 
-__all__ = ["read_points", "write_points"]
+__all__ = ["read_3dtk_points", "read_points", "write_points"]
 
 _ENCODING = "utf-8-sig"
 _DELIMITERS = {";": "semicolons", ",": "commas", None: "whitespace"}
@@ -33,7 +33,7 @@ class _Layout:
         return 6 if self.normals else 3
 
 
-def read_points(path: Path) -> dict[str, np.ndarray | None]:
+def read_points(path: Path, *, normals: bool = True) -> dict[str, np.ndarray | None]:
     """Read ``x y z [nx ny nz]`` rows from a whitespace- or comma-separated text file.
 
     The delimiter of every line is a semicolon or else a comma if the first data line has
@@ -41,12 +41,14 @@ def read_points(path: Path) -> dict[str, np.ndarray | None]:
     is a header; one leading line with a single number is a point count (PTS) and is skipped
     too. Only the first three columns are read, unless the first data line has exactly six:
     then columns 4-6 are normals, except when a header names them otherwise
-    (``x,y,z,r,g,b``).
+    (``x,y,z,r,g,b``) or `normals` is false.
 
     Parameters
     ----------
     path : pathlib.Path
         A UTF-8 text file.
+    normals : bool
+        Whether six columns may hold normals.
 
     Returns
     -------
@@ -64,6 +66,8 @@ def read_points(path: Path) -> dict[str, np.ndarray | None]:
     check_content(path, ("text", "empty", "binary"), "text file")
     try:
         layout = _sniff(path)
+        if layout is not None and not normals:
+            layout = replace(layout, normals=False)
         if layout is None:
             return {"points": np.zeros((0, 3)), "normals": None}
         if layout.columns < 3:
@@ -85,8 +89,16 @@ def read_points(path: Path) -> dict[str, np.ndarray | None]:
             raise InputError(_diagnose(path, layout) or f"cannot parse ({exc})") from exc
     except UnicodeDecodeError as exc:
         raise InputError(f"not a UTF-8 text file ({exc.reason} at byte {exc.start})") from exc
-    normals = table[:, 3:6] if layout.normals else None
-    return {"points": table[:, :3], "normals": normals}
+    return {"points": table[:, :3], "normals": table[:, 3:6] if layout.normals else None}
+
+
+def read_3dtk_points(path: Path) -> dict[str, np.ndarray | None]:
+    """Read a 3DTK scan (``.3d``, the "uos" formats): ``x y z`` and maybe reflectance or colour.
+
+    The coordinates are kept as they are: 3DTK writes centimetres in a left-handed frame
+    with y up. Columns after the third are never normals.
+    """
+    return read_points(path, normals=False)
 
 
 def _sniff(path: Path) -> _Layout | None:
