@@ -165,15 +165,34 @@ def gap_bridges(points, sectors, *, rho_delta: float, tree=None) -> np.ndarray:
     )
     length, column = sector_distances(points, indices, distances)
     gap = np.isfinite(length) & (length > rho_delta)
-    rows, sectors = np.nonzero(gap)
+    rows, direction = np.nonzero(gap)
     start = points[edge[rows]]
-    end = points[indices[rows, column[rows, sectors]]]
-    steps = np.ceil(length[rows, sectors] / (0.5 * rho_delta)).astype(np.int64)
-    chord = np.repeat(np.arange(rows.size), steps - 1)
-    fraction = (
-        np.arange(chord.size) - np.repeat(np.cumsum(steps - 1) - (steps - 1), steps - 1) + 1
-    ) / np.repeat(steps, steps - 1)
+    end = points[indices[rows, column[rows, direction]]]
+    # Each chord is cut into `steps` pieces; its steps - 1 inner cut points are bridges.
+    steps = np.ceil(length[rows, direction] / (0.5 * rho_delta)).astype(np.int64)
+    inner = steps - 1
+    chord = np.repeat(np.arange(rows.size), inner)
+    first = np.cumsum(inner) - inner
+    fraction = (np.arange(chord.size) - first[chord] + 1) / steps[chord]
     return start[chord] + fraction[:, None] * (end[chord] - start[chord])
+
+
+def plane_variance(points, indices, distances, radius) -> np.ndarray:
+    """Mean squared distance (R,) of each neighbourhood from its best-fit plane.
+
+    The neighbourhood of row r is its columns of `indices` within `radius` (one for all
+    rows, or one per row). A plane fitted to m points absorbs 3 of their m degrees of
+    freedom, so the sum of squares is divided by m - 3.
+    """
+    n_rows = indices.shape[0]
+    _, covariances, counts = centroid_covariance(
+        points,
+        np.ascontiguousarray(indices, dtype=np.int64),
+        np.ascontiguousarray(distances, dtype=np.float64),
+        np.broadcast_to(np.asarray(radius, dtype=np.float64), (n_rows,)).copy(),
+    )
+    smallest = np.linalg.eigvalsh(covariances)[:, 0].clip(min=0.0)
+    return smallest * counts / np.maximum(counts - 3, 1)
 
 
 def range_noise(points, neighbours, viewpoints, *, noise: float) -> tuple[np.ndarray, tuple]:
@@ -200,13 +219,13 @@ def range_noise(points, neighbours, viewpoints, *, noise: float) -> tuple[np.nda
     model : (a, b)
         Intercept (data units) and slope (per unit of range).
     """
-    indices = np.ascontiguousarray(neighbours.indices[:, :SMOOTH_K])
-    distances = np.ascontiguousarray(neighbours.distances[:, :SMOOTH_K])
-    _, covariances, counts = centroid_covariance(
-        points, indices, distances, np.full(points.shape[0], np.inf)
-    )
     residual = np.sqrt(
-        np.linalg.eigvalsh(covariances)[:, 0].clip(min=0.0) * counts / np.maximum(counts - 3, 1)
+        plane_variance(
+            points,
+            neighbours.indices[:, :SMOOTH_K],
+            neighbours.distances[:, :SMOOTH_K],
+            np.inf,
+        )
     )
     ranges = np.linalg.norm(points - viewpoints, axis=1)
     order = np.argsort(ranges)

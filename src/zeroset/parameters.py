@@ -4,9 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._kernels.normals import centroid_covariance
 from ._validate import positive, require_rng
-from .density import SECTORS, SECTORS_NEEDED, sector_radius
+from .density import SECTORS, SECTORS_NEEDED, plane_variance, sector_radius
 from .errors import InputError, ReconstructionError
 from .neighbours import build_tree
 from .types import Parameters
@@ -114,13 +113,14 @@ def estimate_parameters(
     )
     balanced = float(np.quantile(balanced, quantile))
     spacing = max(isotropic, balanced)
-    noise = _plane_residual(points, indices, distances, np.inf)
+    noise = float(np.sqrt(np.median(plane_variance(points, indices, distances, np.inf))))
     if noise_factor > 0.0:
         # Small neighbourhoods absorb noise into the plane fit and underestimate it; widen
         # the neighbourhood to the radius the noise calls for until the estimate settles.
         for _ in range(4):
             radius = spacing + noise_factor * noise
-            wider = _plane_residual(points, wide_indices, wide_distances, radius)
+            wider = plane_variance(points, wide_indices, wide_distances, radius)
+            wider = float(np.sqrt(np.median(wider)))
             settled = wider <= 1.05 * noise
             noise = max(noise, wider)
             if settled:
@@ -172,16 +172,3 @@ def estimate_parameters(
         averaging_cell=averaging_cell,
         notes=tuple(notes),
     )
-
-
-def _plane_residual(points, indices, distances, radius) -> float:
-    """Median RMS plane-fit residual of the neighbourhoods: rows of `indices` within `radius`."""
-    radius = np.full(indices.shape[0], radius, dtype=np.float64)
-    _, covariances, counts = centroid_covariance(
-        points, indices.astype(np.int64), distances, radius
-    )
-    # A plane fitted to m points absorbs 3 of their m degrees of freedom.
-    residual = (
-        np.linalg.eigvalsh(covariances)[:, 0].clip(min=0.0) * counts / np.maximum(counts - 3, 1)
-    )
-    return float(np.sqrt(np.median(residual)))
