@@ -11,8 +11,6 @@ __all__ = ["main"]
 
 DEMO_POINTS = 40_000
 HTML_SUFFIXES = (".html", ".htm")
-MESH_HELP = "mesh: .ply .obj .stl .off"
-POINTS_HELP = "points: .ply .las .laz .pcd .e57 .xyz .txt .csv .pts .npy .npz"
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -52,6 +50,10 @@ def main(argv: list[str] | None = None) -> int:
 
 def _parser() -> argparse.ArgumentParser:
     """Build the argument parser; reconstruction options come from ReconstructionConfig."""
+    from .io import MESH_FORMATS, POINT_FORMATS
+
+    mesh_help = "mesh: " + " ".join(MESH_FORMATS)
+    points_help = "points: " + " ".join(POINT_FORMATS)
     parser = argparse.ArgumentParser(
         prog="zeroset", description="Triangle meshes from noisy point clouds (Hoppe 1992)."
     )
@@ -72,8 +74,8 @@ def _parser() -> argparse.ArgumentParser:
         help="reconstruct a mesh from points",
         description="Reconstruct a triangle mesh from a point cloud file.",
     )
-    rec.add_argument("input", type=Path, help=POINTS_HELP)
-    rec.add_argument("-o", "--output", type=Path, required=True, help=MESH_HELP)
+    rec.add_argument("input", type=Path, help=points_help)
+    rec.add_argument("-o", "--output", type=Path, required=True, help=mesh_help)
     rec.add_argument(
         "--report",
         type=Path,
@@ -98,8 +100,8 @@ def _parser() -> argparse.ArgumentParser:
         "distance^2 + c_rep x vertices + kappa x edge lengths^2.",
     )
     opt.add_argument("mesh", type=Path, help="starting mesh: .ply .obj .stl .off")
-    opt.add_argument("points", type=Path, help=POINTS_HELP)
-    opt.add_argument("-o", "--output", type=Path, required=True, help=MESH_HELP)
+    opt.add_argument("points", type=Path, help=points_help)
+    opt.add_argument("-o", "--output", type=Path, required=True, help=mesh_help)
     opt.add_argument("--report", type=Path, help="write parameters, energies and moves as JSON")
     opt.add_argument("--ascii", action="store_true", help="write PLY as text instead of binary")
     opt.add_argument("--c-rep", type=float, help="cost of a vertex (default: from the noise)")
@@ -115,9 +117,9 @@ def _parser() -> argparse.ArgumentParser:
         "off-screen, with its boundary edges in red and optionally the points, their normals "
         "and colours by distance to the points.",
     )
-    ren.add_argument("mesh", type=Path, help=MESH_HELP)
+    ren.add_argument("mesh", type=Path, help=mesh_help)
     ren.add_argument(
-        "points", type=Path, nargs="?", help=POINTS_HELP.replace("points", "points to draw", 1)
+        "points", type=Path, nargs="?", help=points_help.replace("points", "points to draw", 1)
     )
     ren.add_argument("-o", "--output", type=Path, required=True, help="picture: .png")
     ren.add_argument("--hide-points", action="store_true", help="use POINTS but do not draw them")

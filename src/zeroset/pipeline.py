@@ -147,7 +147,7 @@ def reconstruct(
     stages = Stages(STAGES + ((OPTIMIZE_STAGE,) if optimize else ()), show=progress)
     try:
         with stages.stage("prepare"):
-            rows, cropped = _prepare(points, config, stats)
+            rows = _prepare(points, config, stats)
             kept = points[rows]
             _check_spread(kept)
             offset = (kept.min(axis=0) + kept.max(axis=0)) / 2.0
@@ -255,9 +255,11 @@ def reconstruct(
         optimization = None
         if optimize:
             with stages.stage(OPTIMIZE_STAGE):
+                if config.crop is not None:  # phase 2 takes every point the crop keeps
+                    points = points[crop(points, config.crop[:3], config.crop[3:])]
                 optimization = optimize_mesh(
                     mesh,
-                    points[cropped] - offset,
+                    points - offset,
                     c_rep=config.c_rep,
                     kappa=config.kappa,
                     rng=config.seed,
@@ -286,11 +288,8 @@ def reconstruct(
     )
 
 
-def _prepare(
-    points: np.ndarray, config: ReconstructionConfig, stats: dict
-) -> tuple[np.ndarray, np.ndarray]:
-    """Row indices of `points` kept by crop, random and voxel sampling, in spatial order;
-    and those kept by the crop alone (phase 2's points)."""
+def _prepare(points: np.ndarray, config: ReconstructionConfig, stats: dict) -> np.ndarray:
+    """Row indices of `points` kept by crop, random and voxel sampling, in spatial order."""
     reduction = reduce_chunks(
         lambda: [{"points": points}],
         crop_box=config.crop,
@@ -300,9 +299,6 @@ def _prepare(
     )
     stats.update({k: v for k, v in reduction.counts.items() if k != "input_points"})
     rows = reduction.rows
-    cropped = np.arange(points.shape[0])
-    if config.crop is not None:
-        cropped = np.flatnonzero(crop(points, config.crop[:3], config.crop[3:]))
     needed = config.k_max
     if rows.size < needed:
         left = (
@@ -314,7 +310,7 @@ def _prepare(
             f"only {rows.size} point{'' if rows.size == 1 else 's'}{left}; "
             f"a neighbourhood needs at least k_max={needed}"
         )
-    return rows[spatial_order(points[rows])], cropped
+    return rows[spatial_order(points[rows])]
 
 
 def _check_spread(points: np.ndarray) -> None:
