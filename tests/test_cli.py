@@ -361,3 +361,94 @@ def test_optimize_command_errors(argv, message, sphere_file, tmp_path, capsys):
     assert main(filled) == 2
     err = capsys.readouterr().err
     assert err.startswith("zeroset: error:") and message in err and len(err.splitlines()) == 1
+
+
+def _scans_of_a_sphere(folder, n_scans=3, seed=0):
+    """A sphere (radius 0.5) seen by `n_scans` sensors around it, each scan written in its
+    own frame (sensor at the origin, looking along +z); return the files and true poses."""
+    from scipy.spatial.transform import Rotation
+
+    rng = np.random.default_rng(seed)
+    sphere = sample_sphere(60_000, radius=0.5, rng=rng).points
+    files, poses = [], []
+    for i in range(n_scans):
+        angle = 2 * np.pi * i / n_scans
+        sensor = 2.0 * np.array([np.cos(angle), np.sin(angle), 0.3])
+        seen = sphere[np.einsum("ij,ij->i", sphere, sensor - sphere) > 0.1]
+        seen = seen + rng.normal(0.0, 0.002, seen.shape)
+        pose = np.eye(4)
+        pose[:3, :3] = Rotation.from_rotvec(rng.normal(size=3)).as_matrix()
+        pose[:3, 3] = sensor
+        files.append(io.write_points(folder / f"scan{i}.ply", (seen - sensor) @ pose[:3, :3]))
+        poses.append(pose)
+    return files, np.array(poses)
+
+
+def test_several_scans_with_poses_make_one_mesh(tmp_path, capsys):
+    files, poses = _scans_of_a_sphere(tmp_path)
+    # Named poses in another order than the scans: matched by file name.
+    (tmp_path / "poses.json").write_text(
+        json.dumps(
+            {f.name: pose.tolist() for f, pose in reversed(list(zip(files, poses, strict=True)))}
+        )
+    )
+    out, report_path = tmp_path / "mesh.ply", tmp_path / "r.json"
+    args = [*map(str, files), "--poses", str(tmp_path / "poses.json"), "-o", str(out)]
+    assert main(["reconstruct", *args, "--report", str(report_path)]) == 0
+    mesh = io.read_mesh(out)
+    assert np.abs(np.linalg.norm(mesh.vertices, axis=1) - 0.5).max() < 0.01
+    assert topology.face_components(mesh.faces, mesh.n_vertices)[0] == 1
+    report = json.loads(report_path.read_text())
+    assert report["stats"]["input_points"] == sum(len(io.read_points(f).points) for f in files)
+    assert report["stats"]["orientation_disagreement"] < 0.01
+    # The sensors sit outside the sphere, so its normals point out.
+    tri = mesh.vertices[mesh.faces]
+    outward = np.einsum(
+        "ij,ij->i", np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), tri[:, 0]
+    )
+    assert np.all(outward > 0)
+    assert "sensors and spanning tree disagree" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize(
+    "poses_text, extra, message",
+    [
+        ("[]", [], "poses.json: holds no pose"),
+        ('{"other.ply": ' + json.dumps(np.eye(4).tolist()) + "}", [], "has no pose for"),
+        (json.dumps([np.eye(4).tolist()] * 3), [], "3 unnamed poses for 2 scans"),
+        (None, ["--register"], "--register needs two or more scans"),
+    ],
+)
+def test_bad_poses_and_options_end_in_one_line(tmp_path, capsys, poses_text, extra, message):
+    files, _ = _scans_of_a_sphere(tmp_path, n_scans=2)
+    args = ["reconstruct", *map(str, files), "-o", str(tmp_path / "m.ply"), *extra]
+    if poses_text is None:
+        args = ["reconstruct", str(files[0]), "-o", str(tmp_path / "m.ply"), *extra]
+    else:
+        (tmp_path / "poses.json").write_text(poses_text)
+        args += ["--poses", str(tmp_path / "poses.json")]
+    assert main(args) == 2
+    error = capsys.readouterr().err.strip()
+    assert error.startswith("zeroset: error: ") and message in error and "\n" not in error
+    assert not (tmp_path / "m.ply").exists()
+
+
+def test_register_refines_poses_and_reports_residuals(tmp_path, capsys):
+    files, poses = _scans_of_a_sphere(tmp_path)
+    off = poses.copy()
+    off[1:, :3, 3] += [[0.02, 0.0, 0.0], [0.0, -0.015, 0.01]]  # 2 cm and 1.8 cm off
+    (tmp_path / "poses.json").write_text(json.dumps([pose.tolist() for pose in off]))
+    out, report_path = tmp_path / "mesh.ply", tmp_path / "r.json"
+    args = [*map(str, files), "--poses", str(tmp_path / "poses.json"), "-o", str(out)]
+    assert main(["reconstruct", *args, "--register", "--report", str(report_path)]) == 0
+    mesh = io.read_mesh(out)
+    assert np.abs(np.linalg.norm(mesh.vertices, axis=1) - 0.5).max() < 0.01
+    scans = json.loads(report_path.read_text())["registration"]["scans"]
+    assert [scan["name"] for scan in scans] == [f.name for f in files]
+    assert all(scan["residual_after"] < 0.5 * scan["residual_before"] for scan in scans)
+    assert "register    scan1.ply: residual" in capsys.readouterr().out
+    # A scan placed a metre away overlaps nothing: refused, naming it.
+    off[2, :3, 3] += 1.0
+    (tmp_path / "poses.json").write_text(json.dumps([pose.tolist() for pose in off]))
+    assert main(["reconstruct", *args, "--register", "--force"]) == 2
+    assert "scan2.ply does not overlap the other scans" in capsys.readouterr().err

@@ -117,6 +117,43 @@ def test_read_ply_integer_points_ignore_faces_and_range_grid(tmp_path):
     np.testing.assert_array_equal(cloud.points, points)
 
 
+@pytest.mark.parametrize("vertex_list", [False, True])
+def test_ascii_ply_vertices_read_by_numpy_match_plyfile(tmp_path, monkeypatch, vertex_list):
+    # Rows of the elements before the vertices (one line each) are skipped, those after
+    # them never read; a vertex element with a list property is left to plyfile.
+    rng = np.random.default_rng(1)
+    points, normals = rng.normal(size=(30, 3)), rng.normal(size=(30, 3))
+    columns = {**_xyz_columns(points, "f8"), **_xyz_columns(normals, "f8", ("nx", "ny", "nz"))}
+    n = len(points)
+    dtype = [(name, kind) for name, (_, kind) in columns.items()]
+    dtype += [("labels", "O")] if vertex_list else []
+    vertex = np.zeros(n, dtype=dtype)
+    for name, (values, _) in columns.items():
+        vertex[name] = values
+    if vertex_list:
+        vertex["labels"] = [np.arange(i % 3, dtype="i4") for i in range(n)]
+    camera = np.zeros(2, dtype=[("f", "f4")])
+    grid = np.zeros(3, dtype=[("vertex_indices", "O")])
+    grid["vertex_indices"] = [np.array([0], "i4"), np.array([], "i4"), np.array([5, 6], "i4")]
+    elements = [
+        plyfile.PlyElement.describe(camera, "camera"),
+        plyfile.PlyElement.describe(vertex, "vertex"),
+        plyfile.PlyElement.describe(grid, "range_grid"),
+    ]
+    path = tmp_path / "scan.ply"
+    plyfile.PlyData(elements, text=True).write(str(path))
+    used = []
+    monkeypatch.setattr(
+        zio._ply,
+        "_plyfile_vertices",
+        lambda p, real=zio._ply._plyfile_vertices: used.append(p) or real(p),
+    )
+    cloud = zio.read_points(path)
+    np.testing.assert_allclose(cloud.points, points, rtol=1e-12)
+    np.testing.assert_allclose(cloud.normals, normals, rtol=1e-12)
+    assert bool(used) == vertex_list
+
+
 def test_read_binary_ply_in_one_go(tmp_path):
     # plyfile reads binary rows one at a time unless memory-mapped: 5 s per million rows.
     points = np.random.default_rng(0).random((1_000_000, 3))

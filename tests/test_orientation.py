@@ -60,3 +60,59 @@ def test_viewpoints_of_the_wrong_shape_are_rejected(rng):
     c = rng.normal(size=(10, 3))
     with pytest.raises(ValueError, match="viewpoints must be"):
         orient_normals(c, c, viewpoints=np.zeros((4, 3)))
+
+
+def _plate(rng, n=4000, gap=0.02):
+    """A thin plate: its top seen from above, its bottom from below, `gap` apart."""
+    xy = rng.uniform(-0.5, 0.5, size=(n, 2))
+    top = np.column_stack([xy[: n // 2], np.full(n // 2, gap / 2)])
+    bottom = np.column_stack([xy[n // 2 :], np.full(n - n // 2, -gap / 2)])
+    sensors = np.array([[0.0, 0.0, 2.0]] * (n // 2) + [[0.0, 0.0, -2.0]] * (n - n // 2))
+    return np.vstack([top, bottom]), sensors
+
+
+def test_each_normal_faces_the_sensor_that_saw_it(rng):
+    # Both sides of a thin plate share one spanning tree, which orients them alike; each
+    # side must face its own sensor instead.
+    points, sensors = _plate(rng)
+    normals = _random_signs(np.tile([0.0, 0.0, 1.0], (points.shape[0], 1)), rng)
+    tree_only = orient_normals(points, normals, k=12)
+    assert abs(np.mean(tree_only.normals[:, 2] > 0) - 0.5) > 0.4  # one side is wrong
+    result = orient_normals(points, normals, k=12, viewpoints=sensors)
+    assert np.all(np.einsum("ij,ij->i", result.normals, sensors - points) > 0)
+    assert 0.4 < result.disagreement < 0.6
+
+
+def test_points_with_no_known_sensor_follow_their_neighbours(rng):
+    points = sample_cylinder(6000, rng=5).points
+    planes = tangent_planes(points, radius=0.05)
+    sensors = np.tile([0.0, 0.0, 0.5], (points.shape[0], 1))
+    unknown = rng.random(points.shape[0]) < 0.7
+    sensors[unknown] = np.nan
+    result = orient_normals(
+        planes.centroids, _random_signs(planes.normals, rng), viewpoints=sensors
+    )
+    inward = np.einsum("ij,ij->i", result.normals[:, :2], -planes.centroids[:, :2]) > 0
+    assert np.mean(inward[unknown]) > 0.999
+    assert result.disagreement == 0.0
+
+
+def test_sensors_decide_the_side_of_a_closed_surface(rng):
+    # Sensors inside a closed sphere turn it inside out: they, not the outward convention
+    # of the spanning tree, decide, and the tree agrees with them up to that one sign.
+    points = sample_sphere(3000, noise=0.005, rng=6).points
+    planes = tangent_planes(points, radius=0.2)
+    given = _random_signs(planes.normals, rng)
+    outside = orient_normals(planes.centroids, given, viewpoints=3.0 * planes.centroids)
+    inside = orient_normals(planes.centroids, given, viewpoints=np.zeros(3))
+    assert np.all(np.einsum("ij,ij->i", outside.normals, planes.centroids) > 0)
+    assert np.all(np.einsum("ij,ij->i", inside.normals, planes.centroids) < 0)
+    assert outside.disagreement < 0.01 and inside.disagreement < 0.01
+
+
+def test_viewpoint_rows_must_be_finite_or_all_nan(rng):
+    c = rng.normal(size=(10, 3))
+    sensors = np.zeros((10, 3))
+    sensors[3, 1] = np.nan
+    with pytest.raises(ValueError, match="row 3"):
+        orient_normals(c, c, viewpoints=sensors)

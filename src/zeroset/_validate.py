@@ -9,7 +9,15 @@ import numpy as np
 
 from .errors import InputError
 
-__all__ = ["as_faces", "as_points", "as_vector3", "positive", "require_rng"]
+__all__ = [
+    "as_faces",
+    "as_points",
+    "as_poses",
+    "as_vector3",
+    "as_viewpoints",
+    "positive",
+    "require_rng",
+]
 
 
 def as_points(values, name: str = "points", *, min_rows: int = 1) -> np.ndarray:
@@ -39,6 +47,29 @@ def as_points(values, name: str = "points", *, min_rows: int = 1) -> np.ndarray:
     return array
 
 
+def as_viewpoints(values, rows: int) -> np.ndarray:
+    """Return sensor positions as a new (3,) or (rows, 3) float64 array.
+
+    One position for all points must be finite; per point, a row is either finite or all
+    NaN (that point's sensor is not known).
+    """
+    array = np.array(values, dtype=np.float64, copy=True)
+    if array.shape not in ((3,), (rows, 3)):
+        raise InputError(
+            f"viewpoints must be three numbers or one row per point ({rows}, 3); "
+            f"got shape {array.shape}"
+        )
+    finite = np.isfinite(array)
+    known = finite.all(axis=-1) | np.isnan(array).all(axis=-1)
+    if not (finite.all() if array.ndim == 1 else known.all()):
+        bad = np.flatnonzero(~np.atleast_1d(known)) if array.ndim == 2 else [0]
+        raise InputError(
+            "viewpoints must be finite, or a whole row of NaN where a point's sensor is not "
+            f"known; row {int(bad[0]) if len(bad) else 0} is neither"
+        )
+    return array
+
+
 def as_faces(values, n_vertices: int, name: str = "faces") -> np.ndarray:
     """Return `values` as a C-contiguous (F, 3) int64 array indexing `n_vertices` vertices."""
     array = np.array(values, dtype=np.int64, order="C", copy=True)
@@ -49,6 +80,40 @@ def as_faces(values, n_vertices: int, name: str = "faces") -> np.ndarray:
             f"{name} index vertices outside [0, {n_vertices}); got range "
             f"[{array.min()}, {array.max()}]"
         )
+    return array
+
+
+#: Largest departure of a pose's rotation part from orthonormal (|R^T R - I|) accepted;
+#: poses printed with six digits (Stanford .conf files) stay well within it.
+POSE_TOLERANCE = 1e-4
+
+
+def as_poses(values, names=None) -> np.ndarray:
+    """Return rigid poses as a new (S, 4, 4) float64 array, rotations made exactly orthonormal.
+
+    Each pose maps a scan's points into the world, ``p_world = R p + t`` with
+    ``R = pose[:3, :3]`` and ``t = pose[:3, 3]``; its last row must be ``0 0 0 1`` and `R`
+    a rotation (orthonormal within ``POSE_TOLERANCE``, determinant +1). `names` (S,) label
+    the poses in messages.
+    """
+    array = np.array(values, dtype=np.float64, copy=True)
+    if array.ndim != 3 or array.shape[1:] != (4, 4):
+        raise InputError(f"poses must have shape (S, 4, 4); got {array.shape}")
+    labels = list(names) if names is not None else [f"pose {i}" for i in range(len(array))]
+    for label, pose in zip(labels, array, strict=True):
+        rotation = pose[:3, :3]
+        if not np.isfinite(pose).all():
+            raise InputError(f"{label}: the pose holds non-finite values")
+        if not np.allclose(pose[3], [0.0, 0.0, 0.0, 1.0]):
+            raise InputError(f"{label}: the pose's last row must be 0 0 0 1; got {pose[3]}")
+        error = np.abs(rotation.T @ rotation - np.eye(3)).max()
+        if error > POSE_TOLERANCE or np.linalg.det(rotation) < 0.0:
+            raise InputError(
+                f"{label}: the pose's upper-left 3x3 block is not a rotation "
+                f"(|R^T R - I| = {error:.2g}, det {np.linalg.det(rotation):.3g})"
+            )
+        u, _, vt = np.linalg.svd(rotation)
+        pose[:3, :3] = u @ vt
     return array
 
 

@@ -39,18 +39,24 @@ def main(argv: list[str] | None = None) -> int:
             message = f"out of memory ({message})"
         elif not isinstance(exc, expected):
             message = f"internal error, please report it: {type(exc).__name__}: {message}"
-        named = tuple(f"{value}: " for value in vars(args).values() if isinstance(value, Path))
+        paths = [v for value in vars(args).values() for v in _as_list(value) if isinstance(v, Path)]
+        named = tuple(f"{path}: " for path in paths)
         source = getattr(args, "input", None)
         about_input = isinstance(exc, (InputError, ReconstructionError, MemoryError))
         if source is not None and about_input and not message.startswith(named):
-            message = f"{source}: {message}"
+            message = f"{', '.join(map(str, _as_list(source)))}: {message}"
         print(f"zeroset: error: {message}", file=sys.stderr)
         return 1 if isinstance(exc, ReconstructionError) or not isinstance(exc, expected) else 2
 
 
+def _as_list(value) -> list:
+    """`value` itself when a list (an argument with nargs), else a list holding it."""
+    return value if isinstance(value, list) else [value]
+
+
 def _parser() -> argparse.ArgumentParser:
     """Build the argument parser; reconstruction options come from ReconstructionConfig."""
-    from .io import MESH_FORMATS, POINT_FORMATS
+    from .io import MESH_FORMATS, POINT_FORMATS, POSE_FORMATS
 
     mesh_help = "mesh: " + " ".join(MESH_FORMATS)
     points_help = "points: " + " ".join(POINT_FORMATS)
@@ -74,8 +80,22 @@ def _parser() -> argparse.ArgumentParser:
         help="reconstruct a mesh from points",
         description="Reconstruct a triangle mesh from a point cloud file.",
     )
-    rec.add_argument("input", type=Path, help=points_help)
+    rec.add_argument(
+        "input", type=Path, nargs="+", help=points_help + "; several scans are merged into one"
+    )
     rec.add_argument("-o", "--output", type=Path, required=True, help=mesh_help)
+    rec.add_argument(
+        "--poses",
+        type=Path,
+        help="pose of each scan: " + " ".join(POSE_FORMATS) + " (Stanford bmesh lines, or 4x4 "
+        "matrices by scan file name or in order); each scan's sensor sits at its frame's "
+        "origin unless --viewpoint says where",
+    )
+    rec.add_argument(
+        "--register",
+        action="store_true",
+        help="refine the poses by point-to-plane ICP against the other scans",
+    )
     rec.add_argument(
         "--report",
         type=Path,
@@ -289,36 +309,79 @@ def _run_reconstruct(args: argparse.Namespace) -> int:
 
     from . import io
     from .config import ReconstructionConfig
+    from .errors import InputError
     from .pipeline import reconstruct
 
     _check_outputs(
-        [args.output, args.report, args.preview], [args.input], force=args.force, mesh=args.output
+        [args.output, args.report, args.preview],
+        [*args.input, args.poses],
+        force=args.force,
+        mesh=args.output,
     )
+    if args.register and len(args.input) < 2:
+        raise InputError(f"{args.input[0]}: --register needs two or more scans")
     config = ReconstructionConfig().with_overrides(**_config_overrides(args))
+    several = len(args.input) > 1 or args.poses is not None
     reduce = {}
-    if not args.optimize:  # phase 2 takes every point the crop keeps, so it reads them all
+    if not (args.optimize or several):  # phase 2 takes every point the crop keeps
         reduce = dict(crop=config.crop, sample=config.sample, voxel_size=config.voxel_size)
         config = replace(config, crop=None, sample=None, voxel_size=None)
     start = time.perf_counter()
-    cloud = io.read_points(args.input, **reduce, seed=config.seed)
-    reading = {"seconds": time.perf_counter() - start, **cloud.reduction}
+    clouds = [io.read_points(path, **reduce, seed=config.seed) for path in args.input]
+    reading = {"seconds": time.perf_counter() - start, **clouds[0].reduction}
+    registration = None
+    if several:
+        clouds, registration = _merge(args, clouds, config)
+        config = replace(config, viewpoint=None)  # now in every point's sensor position
     result = reconstruct(
-        cloud.points,
+        clouds[0].points,
         config,
-        viewpoints=cloud.viewpoints,
+        viewpoints=clouds[0].viewpoints,
         optimize=args.optimize,
         progress=not args.quiet,
     )
     return _finish(
         result,
         args,
-        points=cloud.points,
-        source=str(args.input),
+        points=clouds[0].points,
+        source=", ".join(map(str, args.input)),
         mesh_path=args.output,
         report_paths=[args.report] if args.report else [],
         preview_path=args.preview,
         reading=reading,
+        registration=registration,
+        title=", ".join(path.name for path in args.input),
     )
+
+
+def _merge(args: argparse.Namespace, clouds: list, config) -> tuple[list, dict | None]:
+    """The scans moved by their poses (read, and refined with --register) into one cloud."""
+    import time
+
+    import numpy as np
+
+    from . import io
+    from .merge import match_poses, merge_scans
+
+    poses = None
+    if args.poses is not None:
+        names, matrices = io.read_poses(args.poses)
+        poses = match_poses(args.input, names, matrices, source=str(args.poses))
+    registration = None
+    if args.register:
+        from .registration import register_scans
+        from .report import registration_report
+
+        start = time.perf_counter()
+        names = [path.name for path in args.input]
+        refined = register_scans(
+            [cloud.points for cloud in clouds],
+            np.tile(np.eye(4), (len(clouds), 1, 1)) if poses is None else poses,
+            names=names,
+        )
+        poses = refined.poses
+        registration = registration_report(refined, names, time.perf_counter() - start)
+    return [merge_scans(clouds, poses, viewpoint=config.viewpoint)], registration
 
 
 def _run_optimize(args: argparse.Namespace) -> int:
@@ -509,7 +572,17 @@ def _run_evaluate(args: argparse.Namespace) -> int:
 
 
 def _finish(
-    result, args, *, points, source, mesh_path, report_paths, preview_path, reading=None
+    result,
+    args,
+    *,
+    points,
+    source,
+    mesh_path,
+    report_paths,
+    preview_path,
+    reading=None,
+    registration=None,
+    title=None,
 ) -> int:
     """Write the mesh, reports (JSON or HTML, by suffix) and preview; print the summary."""
     import resource
@@ -519,7 +592,9 @@ def _finish(
     from .report import format_report, reconstruction_report
 
     io.write_mesh(mesh_path, result.mesh, binary=not getattr(args, "ascii", False))
-    report = reconstruction_report(result, source=source, points=points, reading=reading)
+    report = reconstruction_report(
+        result, source=source, points=points, reading=reading, registration=registration
+    )
     report["peak_mib"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     for path in report_paths:
         if path.suffix.lower() in HTML_SUFFIXES:
@@ -530,7 +605,7 @@ def _finish(
         from .viz import RenderError, preview
 
         try:
-            preview(result.mesh, preview_path, title=Path(source).name)
+            preview(result.mesh, preview_path, title=title or Path(source).name)
         except RenderError as error:
             if args.command != "demo":
                 raise

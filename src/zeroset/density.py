@@ -209,7 +209,8 @@ def range_noise(points, neighbours, viewpoints, *, noise: float) -> tuple[np.nda
     neighbours : Neighbourhoods
         Nearest neighbours of every point, itself first (the first 16 columns are used).
     viewpoints : (3,) or (N, 3) float64
-        Sensor position, one for all or one per point.
+        Sensor position, one for all or one per point; rows of NaN (sensor not known) get
+        the cloud's `noise`, as do all points when fewer than RANGE_BINS have a sensor.
     noise : float
         The cloud's noise level (`Parameters.noise`).
 
@@ -228,12 +229,15 @@ def range_noise(points, neighbours, viewpoints, *, noise: float) -> tuple[np.nda
         )
     )
     ranges = np.linalg.norm(points - viewpoints, axis=1)
-    order = np.argsort(ranges)
-    bins = np.array_split(order, min(RANGE_BINS, points.shape[0]))
+    known = np.isfinite(ranges)
+    order = np.argsort(ranges)[: np.count_nonzero(known)]
+    if order.size < RANGE_BINS:
+        return np.full(points.shape[0], noise), (noise, 0.0)
+    bins = np.array_split(order, RANGE_BINS)
     centre = np.array([np.median(ranges[b]) for b in bins])
     level = np.array([np.median(residual[b]) for b in bins])
     slope, intercept = np.polyfit(centre, level, 1)
     if slope < 0.0:
         slope, intercept = 0.0, float(np.mean(level))
-    sigma = np.maximum(intercept + slope * ranges, 0.5 * noise)
+    sigma = np.where(known, np.maximum(intercept + slope * ranges, 0.5 * noise), noise)
     return sigma, (float(intercept), float(slope))

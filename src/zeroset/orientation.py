@@ -7,16 +7,23 @@ from scipy import sparse
 from scipy.sparse.csgraph import breadth_first_order, connected_components, minimum_spanning_tree
 
 from ._kernels.orientation import component_extremes, propagate_signs
-from ._validate import as_points, positive
+from ._validate import as_points, as_viewpoints, positive
 from .errors import InputError
 from .neighbours import build_tree, knn
 from .types import Neighbourhoods, Orientation
 
 __all__ = ["orient_normals"]
 
-#: Mean |cosine| between normals and sensor directions above which a component's own
-#: viewpoint vote decides its orientation.
+#: |cosine| between a normal and the direction to its sensor from which the sensor decides
+#: the normal's sign (the beam meets the surface within 60 degrees of its normal). Nearer
+#: grazing, and in sparse rings far down a pipe, a poorly fitted plane may face the sensor
+#: by chance; such points follow the tree.
+FACING = 0.5
+#: Mean |cosine| from which a component's own sensors decide its sign in the vote.
 DECISIVE = 0.3
+#: Weight of the tree edges joining the virtual root to the anchored points: below every
+#: graph edge (whose weights are at least 1e-9), so that each anchor hangs from the root.
+_ANCHOR_WEIGHT = 1e-12
 
 _DIRECTIONS = np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], float)
 
@@ -39,10 +46,12 @@ def orient_normals(
     one of the six axis directions (the one whose normal is most parallel to it), oriented
     along that direction: at an extreme point of a closed surface that is outward.
 
-    With viewpoints (sensor positions), each component is then turned to face its sensors:
-    its normals vote with the cosine to their sensor's direction. Flipping each normal to its
-    own sensor instead fails on scans where beams graze the surface (far down a pipe): there
-    the sign of n . (v - c) is decided by noise.
+    With viewpoints (sensor positions), each normal that faces its sensor clearly (|cosine|
+    between it and the direction to the sensor at least ``FACING``) is turned towards it,
+    and the tree is re-rooted at these anchors: every other normal takes its sign from the
+    nearest anchor through the tree. Beams that graze the surface (far down a pipe) leave
+    the sign of n . (v - c) to noise, so those points, and points with no known sensor,
+    follow the tree instead. A component with no anchor follows the vote of the whole cloud.
 
     Parameters
     ----------
@@ -60,12 +69,16 @@ def orient_normals(
         Precomputed neighbours to use for the graph (those of the data points serve as
         well as the centroids', thesis §3.2.8).
     viewpoints : (3,) or (N, 3) array_like of float, optional
-        Sensor position, one for all or one per point.
+        Sensor position, one for all or one per point; a row of NaN where a point's sensor
+        is not known.
 
     Returns
     -------
     Orientation
-        ``normals`` (N, 3), ``flipped`` (N,), ``component`` (N,), ``roots`` (C,), ``method``.
+        ``normals`` (N, 3), ``flipped`` (N,), ``component`` (N,), ``roots`` (C,), ``method``
+        and, with viewpoints, ``disagreement``: the share of anchored points whose sensor
+        and the tree alone orient oppositely, the tree's sign in each component set by the
+        vote of its sensors (so a sign convention is no disagreement, an inconsistency is).
 
     Notes
     -----
@@ -79,12 +92,7 @@ def orient_normals(
         raise InputError(f"normals must match centroids {centroids.shape}; got {normals.shape}")
     n = centroids.shape[0]
     if viewpoints is not None:
-        viewpoints = np.asarray(viewpoints, dtype=np.float64)
-        if viewpoints.shape not in ((3,), centroids.shape) or not np.isfinite(viewpoints).all():
-            raise InputError(
-                f"viewpoints must be three finite numbers or one row per point "
-                f"{centroids.shape}; got shape {viewpoints.shape}"
-            )
+        viewpoints = as_viewpoints(viewpoints, n)
 
     k = positive(k, "k", integer=True)
     if neighbours is None:
@@ -117,19 +125,53 @@ def orient_normals(
         (np.ones(n_components), (np.full(n_components, n), roots)), shape=(n + 1, n + 1)
     )
     tree = minimum_spanning_tree(sparse.block_diag([graph, sparse.csr_matrix((1, 1))]) + virtual)
-    order, predecessors = breadth_first_order(tree, n, directed=False, return_predecessors=True)
-    signs = propagate_signs(
-        order.astype(np.int64), predecessors.astype(np.int64), normals, root_sign
-    )
+    signs = _walk(tree, normals, root_sign)
+    disagreement = None
     if viewpoints is not None:
-        signs *= _viewpoint_vote(centroids, normals * signs[:, None], viewpoints, component)
+        cosine = _sensor_cosine(centroids, normals, viewpoints)
+        signs *= _viewpoint_vote(cosine * signs, component)
+        anchored = np.abs(cosine) >= FACING
+        if anchored.any():
+            disagreement = float(np.mean(signs[anchored] * cosine[anchored] < 0.0))
+            signs = _anchored_signs(tree[:n, :n], normals, cosine, anchored, component, signs)
     return Orientation(
         normals=normals * signs[:, None],
         flipped=signs < 0,
         component=component,
         roots=roots.astype(np.int64),
         method="mst" if viewpoints is None else "mst+viewpoints",
+        disagreement=disagreement,
     )
+
+
+def _walk(tree: sparse.spmatrix, normals: np.ndarray, root_sign: np.ndarray) -> np.ndarray:
+    """Signs (N,) spreading `root_sign` from the tree's last node, a virtual root, down."""
+    n = normals.shape[0]
+    order, predecessors = breadth_first_order(tree, n, directed=False, return_predecessors=True)
+    return propagate_signs(
+        order.astype(np.int64), predecessors.astype(np.int64), normals, root_sign
+    )
+
+
+def _anchored_signs(tree, normals, cosine, anchored, component, signs) -> np.ndarray:
+    """Signs (N,) from the anchors' sensors, spread through the orientation tree.
+
+    The tree is re-rooted: a virtual root joins every anchor by an edge lighter than any
+    tree edge, and the root of each component without an anchor by a heavier one, so the
+    minimum spanning tree of the tree and these edges hangs every point from its nearest
+    anchor. Anchors take the sign of their cosine; unanchored components keep `signs`.
+    """
+    n = normals.shape[0]
+    free = np.flatnonzero(~np.isin(np.arange(component.max() + 1), component[anchored]))
+    firsts = np.unique(component, return_index=True)[1][free]
+    ends = np.concatenate([np.flatnonzero(anchored), firsts])
+    weights = np.concatenate(
+        [np.full(np.count_nonzero(anchored), _ANCHOR_WEIGHT), np.full(firsts.size, 2.0)]
+    )
+    star = sparse.coo_matrix((weights, (np.full(ends.size, n), ends)), shape=(n + 1, n + 1))
+    rerooted = minimum_spanning_tree(sparse.block_diag([tree, sparse.csr_matrix((1, 1))]) + star)
+    root_sign = np.where(anchored, np.sign(cosine), signs)
+    return _walk(rerooted, normals, root_sign)
 
 
 def _bridges(centroids, normals, component, reach) -> sparse.csr_matrix:
@@ -157,19 +199,23 @@ def _bridges(centroids, normals, component, reach) -> sparse.csr_matrix:
     return sparse.coo_matrix((cost, (rows, cols)), shape=(n, n)).tocsr()
 
 
-def _viewpoint_vote(centroids, normals, viewpoints, component) -> np.ndarray:
+def _sensor_cosine(centroids, normals, viewpoints) -> np.ndarray:
+    """Cosine (N,) between each normal and the direction to its sensor; 0 where unknown."""
+    towards = viewpoints - centroids
+    length = np.linalg.norm(towards, axis=1)
+    cosine = np.einsum("ij,ij->i", normals, towards) / np.maximum(length, 1e-300)
+    return np.where(np.isfinite(cosine), cosine, 0.0)
+
+
+def _viewpoint_vote(cosine, component) -> np.ndarray:
     """Sign (N,) per point: -1 in components whose normals face away from their sensors.
 
-    Each normal votes with the cosine between it and the direction to its sensor, so points
-    seen head-on count fully and grazing ones, whose sign noise decides, hardly. A component
+    Each normal votes with its `cosine` (N,) to the direction of its sensor, so points seen
+    head-on count fully and grazing ones, whose sign noise decides, hardly. A component
     seen only at grazing angles (mean |cosine| below ``DECISIVE``, such as a sparse ring far
     down a pipe) follows the vote of the whole cloud, whose components all share the
     outward convention of the extreme-point roots.
     """
-    towards = viewpoints - centroids
-    cosine = np.einsum("ij,ij->i", normals, towards) / np.maximum(
-        np.linalg.norm(towards, axis=1), 1e-300
-    )
     size = int(component.max()) + 1
     votes = np.bincount(component, weights=cosine, minlength=size)
     strength = np.bincount(component, weights=np.abs(cosine), minlength=size) / np.maximum(

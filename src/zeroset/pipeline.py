@@ -8,7 +8,7 @@ import numpy as np
 
 from . import topology
 from ._progress import Stages
-from ._validate import as_points
+from ._validate import as_points, as_viewpoints
 from .config import ReconstructionConfig
 from .contour import marching_cubes, method_of_cubes
 from .density import BRIDGE_REACH, gap_bridges, point_radii, range_noise, sector_distances
@@ -111,7 +111,8 @@ def reconstruct(
     config : ReconstructionConfig, optional
         All parameters; fields may also be given as keywords (``rho_delta=0.02``).
     viewpoints : (N, 3) array_like of float, optional
-        Sensor position of every point; normals are oriented towards it.
+        Sensor position of every point, a row of NaN where not known; normals are oriented
+        towards it (:func:`zeroset.orientation.orient_normals`).
     optimize : bool
         Run phase 2 (:func:`zeroset.optimize`, Hoppe et al. 1993) on phase 1's mesh with
         every point left after cropping, including those that sampling kept from phase 1.
@@ -140,7 +141,7 @@ def reconstruct(
     config = (config or ReconstructionConfig()).with_overrides(**overrides)
     points = as_points(points)
     if viewpoints is not None:
-        viewpoints = as_points(viewpoints, "viewpoints")
+        viewpoints = as_viewpoints(viewpoints, points.shape[0])
         if viewpoints.shape != points.shape:
             raise InputError(f"viewpoints must match points {points.shape}; got {viewpoints.shape}")
     stats: dict = {"input_points": points.shape[0]}
@@ -221,6 +222,8 @@ def reconstruct(
                 viewpoints=viewpoints,
             )
             stats["orientation_components"] = orientation.n_components
+            if orientation.disagreement is not None:
+                stats["orientation_disagreement"] = orientation.disagreement
         with stages.stage("signed distance"):
             bridges = gap_bridges(phase1, sectors, rho_delta=parameters.rho_delta)
             stats["gap_bridge_points"] = bridges.shape[0]

@@ -146,7 +146,11 @@ class Orientation(_Frozen):
     roots : (C,) int64
         The point whose orientation seeded each component.
     method : str
-        ``"mst"`` or ``"viewpoint"``.
+        ``"mst"`` or ``"mst+viewpoints"``.
+    disagreement : float or None
+        With viewpoints: the share of the points that face their sensor clearly whose
+        sensor and the spanning tree alone (each component's sign set by its sensors' vote)
+        orient them oppositely; None without.
     """
 
     normals: np.ndarray
@@ -154,6 +158,7 @@ class Orientation(_Frozen):
     component: np.ndarray
     roots: np.ndarray
     method: str
+    disagreement: float | None = None
 
     @property
     def n_components(self) -> int:

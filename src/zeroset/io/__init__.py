@@ -16,20 +16,22 @@ from pathlib import Path
 
 import numpy as np
 
-from .._validate import as_faces, as_points
+from .._validate import as_faces, as_points, as_poses
 from ..errors import InputError
 from ..prepare import CHUNK_POINTS, reduce_chunks
 from ..types import Mesh, PointCloud
-from . import _e57, _las, _mesh, _numpy, _pcd, _ply, _text
+from . import _e57, _las, _mesh, _numpy, _pcd, _ply, _poses, _text
 from ._atomic import atomic_target
 
 __all__ = [
     "MESH_FORMATS",
     "POINT_FORMATS",
+    "POSE_FORMATS",
     "atomic_target",
     "check_output",
     "read_mesh",
     "read_points",
+    "read_poses",
     "write_json",
     "write_mesh",
     "write_points",
@@ -69,10 +71,14 @@ _MESH_WRITERS = {
     ".stl": _mesh.write_stl,
 }
 
+_POSE_READERS = {".conf": _poses.read_conf, ".csv": _poses.read_csv, ".json": _poses.read_json}
+
 #: Suffixes `read_points` understands.
 POINT_FORMATS: tuple[str, ...] = tuple(sorted(_POINT_READERS))
 #: Suffixes `read_mesh` and `write_mesh` understand.
 MESH_FORMATS: tuple[str, ...] = tuple(sorted(_MESH_WRITERS))
+#: Suffixes `read_poses` understands.
+POSE_FORMATS: tuple[str, ...] = tuple(sorted(_POSE_READERS))
 
 
 def read_points(
@@ -176,6 +182,40 @@ def read_points(
         source=os.fspath(path),
         reduction=counts,
     )
+
+
+def read_poses(path: str | os.PathLike) -> tuple[list[str] | None, np.ndarray]:
+    """Read rigid scan poses.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        A file whose lower-case suffix is in `POSE_FORMATS`:
+
+        - ``.conf``: Stanford scanalyze, ``bmesh NAME tx ty tz qx qy qz qw`` a line; a scan
+          point ``p`` lies at ``R(q)^T p + t`` (``camera`` lines are skipped).
+        - ``.json``: an object mapping scan file names to 4x4 matrices (lists of rows), or a
+          list of 4x4 matrices in the order of the scans.
+        - ``.csv``: a row per scan, ``[name,] m00, m01, ..., m33``, the matrix row by row.
+
+    Returns
+    -------
+    names : list of str or None
+        The scan each pose belongs to, as the file names it; None when the file gives poses
+        in the order of the scans.
+    poses : (S, 4, 4) float64
+        ``p_world = pose[:3, :3] @ p + pose[:3, 3]``, rotations made exactly orthonormal.
+
+    Raises
+    ------
+    InputError
+        If the file is missing or malformed, holds no pose, or a pose is not rigid. The
+        message starts with `path`.
+    """
+    target, reader = _existing(path, _POSE_READERS, "pose")
+    with _about(path, "read"):
+        names, matrices = reader(target)
+        return names, as_poses(matrices, names)
 
 
 def _columns(raw: dict) -> dict[str, np.ndarray]:
