@@ -13,7 +13,7 @@ import os
 import tempfile
 from pathlib import Path
 
-SECTIONS = ("phase1", "phase2", "cubes", "report", "large", "scans", "peers")
+SECTIONS = ("phase1", "phase2", "cubes", "report", "large", "scans", "registered", "peers")
 
 INTRO = """# Benchmarks
 
@@ -37,6 +37,9 @@ and keeps the rest (this introduction included):
 - [Anisotropic laser scans](#anisotropic-laser-scans): simulated in-pipe scans and real
   rotating-laser scans, zeroset beside Open3D and PyMeshLab (`benchmarks/bench_scans.py`,
   needs the `bench` extra).
+- [Several scans with poses](#several-scans-with-poses): the ten Stanford bunny range scans
+  with their poses, as given and registered, against Stanford's reconstruction; how often the
+  sensors and the spanning tree orient a normal differently (`benchmarks/bench_registered.py`).
 - [Peers](#peers-zeroset-against-open3d-pymeshlab-and-vtk): zeroset against the tools a user
   would otherwise pick (Open3D, PyMeshLab, VTK) on synthetic pipes with exact ground truth and
   on real scans (`benchmarks/bench_peers.py`, needs the `bench` extra).

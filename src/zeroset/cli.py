@@ -78,7 +78,7 @@ def _parser() -> argparse.ArgumentParser:
         "reconstruct",
         parents=[common, writes],
         help="reconstruct a mesh from points",
-        description="Reconstruct a triangle mesh from a point cloud file.",
+        description="Reconstruct a triangle mesh from a point cloud file, or from several scans.",
     )
     rec.add_argument(
         "input", type=Path, nargs="+", help=points_help + "; several scans are merged into one"
@@ -94,7 +94,7 @@ def _parser() -> argparse.ArgumentParser:
     rec.add_argument(
         "--register",
         action="store_true",
-        help="refine the poses by point-to-plane ICP against the other scans",
+        help="refine the poses by ICP (Generalized-ICP) against the other scans; print residuals",
     )
     rec.add_argument(
         "--report",
@@ -378,6 +378,7 @@ def _merge(args: argparse.Namespace, clouds: list, config) -> tuple[list, dict |
             [cloud.points for cloud in clouds],
             np.tile(np.eye(4), (len(clouds), 1, 1)) if poses is None else poses,
             names=names,
+            progress=not args.quiet,
         )
         poses = refined.poses
         registration = registration_report(refined, names, time.perf_counter() - start)

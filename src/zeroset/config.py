@@ -46,7 +46,7 @@ class ReconstructionConfig:
         None, "keep points inside the box xmin,ymin,zmin,xmax,ymax,zmax", nargs=6
     )
     viewpoint: tuple[float, float, float] | None = _opt(
-        None, "sensor position x,y,z: orient normals towards it", nargs=3
+        None, "sensor position x,y,z (in each scan's own frame): normals face it", nargs=3
     )
     contour: str = _opt(
         "marching",

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ._progress import Stages
 from ._rigid import transform
 from ._validate import as_points, as_poses, positive
 from .errors import InputError
@@ -101,6 +102,7 @@ def register_scans(
     min_overlap: float = 0.05,
     rounds: int = ROUNDS,
     threads: int = 1,
+    progress: bool = False,
 ) -> Registration:
     """Refine the rigid poses of overlapping scans by ICP.
 
@@ -137,6 +139,8 @@ def register_scans(
         Threads small_gicp uses. With more than one, its sums run in a varying order, and
         the poses vary from run to run in the last digits (about 1e-11 of the size of the
         data); with one, the same input gives the same poses bit for bit.
+    progress : bool
+        Show a progress bar over the alignments when stderr is a terminal.
 
     Returns
     -------
@@ -245,7 +249,14 @@ def register_scans(
     centre = 0.5 * (low + high)
     voxel = max(VOXEL_SPACINGS * spacing, float(np.max(high - low)) / _VOXEL_RANGE)
     corrections = _align_rounds(
-        [w - centre for w in world], names, fixed, order, schedule, voxel=voxel, threads=threads
+        [w - centre for w in world],
+        names,
+        fixed,
+        order,
+        schedule,
+        voxel=voxel,
+        threads=threads,
+        progress=progress,
     )
     refined = poses.copy()
     for i, correction in enumerate(corrections):
@@ -434,7 +445,7 @@ def _tangent_planes(points, tree, rows) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _align_rounds(
-    clouds, names, fixed: int, order, schedule, *, voxel: float, threads: int
+    clouds, names, fixed: int, order, schedule, *, voxel: float, threads: int, progress: bool
 ) -> list[np.ndarray]:
     """Corrections (4, 4) of every cloud, aligning each in turn to the others (small_gicp).
 
@@ -450,59 +461,81 @@ def _align_rounds(
         for cloud in clouds
     ]
     corrections = [np.eye(4) for _ in clouds]
-    for round_, distance in enumerate(schedule):
-        for position, i in enumerate(order):
+    steps = [(r, position) for r in range(len(schedule)) for position in range(len(order))]
+    stages = Stages(tuple(f"register {r + 1}/{len(schedule)}" for r, _ in steps), show=progress)
+    try:
+        for round_, position in steps:
+            i = order[position]
             if round_ == 0:
                 others = [fixed, *order[:position]]
             else:
                 others = [j for j in range(len(clouds)) if j != i]
-            target = small_gicp.PointCloud(
-                np.concatenate([transform(corrections[j], points[j]) for j in others])
-            )
-            target_tree = small_gicp.KdTree(target, num_threads=threads)
-            small_gicp.estimate_normals_covariances(
-                target, target_tree, num_neighbors=NORMAL_K, num_threads=threads
-            )
-            rows = _overlapping(
-                transform(corrections[i], points[i]),
-                target,
-                target_tree,
-                distance=float(distance),
-                reach=EDGE_VOXELS * voxel,
-                threads=threads,
-            )
-            if min(rows.size, target.size()) <= MIN_POINTS:
-                # small_gicp needs more than 10 points on either side.
-                warnings.warn(
-                    f"{names[i]} was not moved in round {round_ + 1}: only {rows.size} of its "
-                    f"points face the {target.size()} points of the other scans within "
-                    f"{distance:.3g}",
-                    stacklevel=3,
+            with stages.stage(f"register {round_ + 1}/{len(schedule)}"):
+                corrections[i] = _align_one(
+                    points[i],
+                    np.concatenate([transform(corrections[j], points[j]) for j in others]),
+                    corrections[i],
+                    float(schedule[round_]),
+                    name=f"{names[i]} in round {round_ + 1}",
+                    reach=EDGE_VOXELS * voxel,
+                    tolerance=TRANSLATION_EPSILON * float(schedule[-1]),
+                    threads=threads,
                 )
-                continue
-            source = small_gicp.PointCloud(points[i][rows])
-            small_gicp.estimate_covariances(
-                source,
-                small_gicp.KdTree(source, num_threads=threads),
-                num_neighbors=NORMAL_K,
-                num_threads=threads,
-            )
-            result = small_gicp.align(
-                target,
-                source,
-                target_tree,
-                init_T_target_source=corrections[i],
-                registration_type=METHOD,
-                max_correspondence_distance=float(distance),
-                num_threads=threads,
-                max_iterations=MAX_ITERATIONS,
-                rotation_epsilon=ROTATION_EPSILON,
-                translation_epsilon=TRANSLATION_EPSILON * float(schedule[-1]),
-            )
-            moved = np.asarray(result.T_target_source, dtype=np.float64)
-            if np.isfinite(moved).all():
-                corrections[i] = moved
+    finally:
+        stages.close()
     return corrections
+
+
+def _align_one(source_points, target_points, start, distance, *, name, reach, tolerance, threads):
+    """Correction (4, 4) aligning `source_points` (N, 3) to `target_points` (M, 3) by GICP.
+
+    `start` is the current correction; the one returned replaces it (and is `start` itself
+    when too few points face the target, with a warning naming the scan as `name`).
+    """
+    import small_gicp
+
+    target = small_gicp.PointCloud(target_points)
+    target_tree = small_gicp.KdTree(target, num_threads=threads)
+    small_gicp.estimate_normals_covariances(
+        target, target_tree, num_neighbors=NORMAL_K, num_threads=threads
+    )
+    rows = _overlapping(
+        transform(start, source_points),
+        target,
+        target_tree,
+        distance=distance,
+        reach=reach,
+        threads=threads,
+    )
+    if min(rows.size, target.size()) <= MIN_POINTS:
+        # small_gicp needs more than 10 points on either side.
+        warnings.warn(
+            f"{name} was not moved: only {rows.size} of its points face the "
+            f"{target.size()} points of the other scans within {distance:.3g}",
+            stacklevel=4,
+        )
+        return start
+    source = small_gicp.PointCloud(source_points[rows])
+    small_gicp.estimate_covariances(
+        source,
+        small_gicp.KdTree(source, num_threads=threads),
+        num_neighbors=NORMAL_K,
+        num_threads=threads,
+    )
+    result = small_gicp.align(
+        target,
+        source,
+        target_tree,
+        init_T_target_source=start,
+        registration_type=METHOD,
+        max_correspondence_distance=distance,
+        num_threads=threads,
+        max_iterations=MAX_ITERATIONS,
+        rotation_epsilon=ROTATION_EPSILON,
+        translation_epsilon=tolerance,
+    )
+    moved = np.asarray(result.T_target_source, dtype=np.float64)
+    return moved if np.isfinite(moved).all() else start
 
 
 def _overlapping(points, target, tree, *, distance: float, reach: float, threads: int):
