@@ -329,21 +329,21 @@ def _run_reconstruct(args: argparse.Namespace) -> int:
     start = time.perf_counter()
     clouds = [io.read_points(path, **reduce, seed=config.seed) for path in args.input]
     reading = {"seconds": time.perf_counter() - start, **clouds[0].reduction}
-    registration = None
+    cloud, registration = clouds[0], None
     if several:
-        clouds, registration = _merge(args, clouds, config)
+        cloud, registration = _merge(args, clouds, config)
         config = replace(config, viewpoint=None)  # now in every point's sensor position
     result = reconstruct(
-        clouds[0].points,
+        cloud.points,
         config,
-        viewpoints=clouds[0].viewpoints,
+        viewpoints=cloud.viewpoints,
         optimize=args.optimize,
         progress=not args.quiet,
     )
     return _finish(
         result,
         args,
-        points=clouds[0].points,
+        points=cloud.points,
         source=", ".join(map(str, args.input)),
         mesh_path=args.output,
         report_paths=[args.report] if args.report else [],
@@ -354,8 +354,9 @@ def _run_reconstruct(args: argparse.Namespace) -> int:
     )
 
 
-def _merge(args: argparse.Namespace, clouds: list, config) -> tuple[list, dict | None]:
-    """The scans moved by their poses (read, and refined with --register) into one cloud."""
+def _merge(args: argparse.Namespace, clouds: list, config) -> tuple:
+    """One cloud of the scans moved by their poses (read, and refined with --register), and
+    the registration's report (None without --register)."""
     import time
 
     import numpy as np
@@ -382,7 +383,7 @@ def _merge(args: argparse.Namespace, clouds: list, config) -> tuple[list, dict |
         )
         poses = refined.poses
         registration = registration_report(refined, names, time.perf_counter() - start)
-    return [merge_scans(clouds, poses, viewpoint=config.viewpoint)], registration
+    return merge_scans(clouds, poses, viewpoint=config.viewpoint), registration
 
 
 def _run_optimize(args: argparse.Namespace) -> int:
