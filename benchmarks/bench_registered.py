@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 from _docfile import replace_section
-from bench_peers import DEFAULT_DATA, DEFAULT_OUTPUT
+from bench_peers import DEFAULT_DATA, DEFAULT_IMAGES, DEFAULT_OUTPUT
 from bench_phase1 import machine_info, machine_lines
 from scipy.spatial.transform import Rotation
 
@@ -31,7 +31,10 @@ from zeroset.evaluate import compare_to_reference
 from zeroset.merge import match_poses, merge_scans
 from zeroset.registration import register_scans
 from zeroset.synthetic import sample_sphere, scan_pipe
+from zeroset.viz import preview
 
+#: The picture of the bunny reconstructed with the poses of bun.conf.
+PICTURE = "registered-bunny.png"
 #: The Cyberware scanner looks along -z of each scan frame: its position there.
 BUNNY_SENSOR = (0.0, 0.0, 1.0)
 #: Simulated pipe scans: radius (m), degrees between scan lines, scanner offset (m), seed.
@@ -59,7 +62,7 @@ def pose_change(a: np.ndarray, b: np.ndarray) -> tuple[float, float]:
     return max(angles), float(np.linalg.norm(a[:, :3, 3] - b[:, :3, 3], axis=1).max())
 
 
-def bunny_rows(data: Path) -> tuple[list[str], list[str]]:
+def bunny_rows(data: Path, images: Path) -> tuple[list[str], list[str]]:
     """Rows of the bunny table and of the agreement table, for each way of placing the scans."""
     folder = data / "stanford_bunny"
     paths = sorted((folder / "data").glob("*.ply"))
@@ -109,6 +112,7 @@ def bunny_rows(data: Path) -> tuple[list[str], list[str]]:
             f"{stats['boundary_loops']} | {stats['orientation_disagreement']:.2%} |"
         )
         if not register:
+            preview(recon.mesh, images / PICTURE, title="Stanford bunny, 10 scans, bun.conf")
             agreement.append(
                 f"| Stanford bunny, 10 scans ({cloud.points.shape[0]:,} points) | "
                 f"{stats['orientation_disagreement']:.2%} |"
@@ -150,8 +154,8 @@ def simulated_agreement() -> list[str]:
     return rows
 
 
-def section(data: Path) -> str:
-    bunny, agreement = bunny_rows(data)
+def section(data: Path, images: Path) -> str:
+    bunny, agreement = bunny_rows(data, images)
     agreement += simulated_agreement()
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     return "\n".join(
@@ -176,6 +180,8 @@ def section(data: Path) -> str:
             "|---|---|---|---|---|---|---|---|---|",
             *bunny,
             "",
+            f"![The bunny from its ten scans and bun.conf's poses](images/{PICTURE})",
+            "",
             "Sensors against the spanning tree: the share of the normals that face their sensor",
             "within 60° whose sign the sensor and the spanning tree alone (each component turned",
             "by its sensors' vote) set oppositely. Over 1 % the report asks whether the sensor",
@@ -196,8 +202,9 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--data", type=Path, default=DEFAULT_DATA, help="shared data folder")
     parser.add_argument("--output", type=Path, default=DEFAULT_OUTPUT, help="benchmarks.md")
+    parser.add_argument("--images", type=Path, default=DEFAULT_IMAGES, help="picture folder")
     args = parser.parse_args()
-    text = section(args.data)
+    text = section(args.data, args.images)
     replace_section(args.output, "registered", text)
     print(text)
 
