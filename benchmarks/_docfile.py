@@ -13,7 +13,7 @@ import os
 import tempfile
 from pathlib import Path
 
-SECTIONS = ("phase1", "phase2", "cubes", "report", "large", "scans", "registered", "peers")
+SECTIONS = ("phase1", "phase2", "cubes", "report", "large", "tiles", "scans", "registered", "peers")
 
 INTRO = """# Benchmarks
 
@@ -34,6 +34,9 @@ and keeps the rest (this introduction included):
 - [Larger than memory](#larger-than-memory-a-100m-point-laz-at-reduced-density): a
   100M-point LAZ read in chunks and voxel-sampled while read, wall time and peak memory
   (`benchmarks/bench_large.py`).
+- [Tiled on Dask](#tiled-on-dask-a-20m-point-pipe-network): a 20M-point pipe rack
+  reconstructed in tiles on a local Dask cluster of one and two worker processes, wall
+  time and peak memory per worker (`benchmarks/bench_tiles.py`).
 - [Anisotropic laser scans](#anisotropic-laser-scans): simulated in-pipe scans and real
   rotating-laser scans, zeroset beside Open3D and PyMeshLab (`benchmarks/bench_scans.py`,
   needs the `bench` extra).

@@ -97,6 +97,21 @@ def _parser() -> argparse.ArgumentParser:
         help="refine the poses by ICP (Generalized-ICP) against the other scans; print residuals",
     )
     rec.add_argument(
+        "--tiles",
+        help="reconstruct in tiles run as Dask tasks: auto, or NxMxK tiles per axis; each "
+        "reads its own points, and the pieces are welded exactly",
+    )
+    rec.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        help="with --tiles: a dask.distributed scheduler (default: a local cluster)",
+    )
+    rec.add_argument(
+        "--workers",
+        type=int,
+        help="with --tiles: worker processes of the local cluster (default: one per core)",
+    )
+    rec.add_argument(
         "--report",
         type=Path,
         help="write parameters, counts and timings: .json, or .html with a 3D viewer",
@@ -321,6 +336,10 @@ def _run_reconstruct(args: argparse.Namespace) -> int:
     if args.register and len(args.input) < 2:
         raise InputError(f"{args.input[0]}: --register needs two or more scans")
     config = ReconstructionConfig().with_overrides(**_config_overrides(args))
+    if args.tiles is not None:
+        return _run_tiled(args, config)
+    if args.scheduler is not None or args.workers is not None:
+        raise InputError("--scheduler and --workers go with --tiles")
     several = len(args.input) > 1 or args.poses is not None
     reduce = {}
     if not (args.optimize or several):  # phase 2 takes every point the crop keeps
@@ -351,6 +370,63 @@ def _run_reconstruct(args: argparse.Namespace) -> int:
         reading=reading,
         registration=registration,
         title=", ".join(path.name for path in args.input),
+    )
+
+
+def _run_tiled(args: argparse.Namespace, config) -> int:
+    """`reconstruct --tiles`: the tiles run on a Dask cluster, local unless --scheduler."""
+    from .errors import InputError
+    from .tiles import reconstruct_tiled
+
+    if len(args.input) > 1 or args.poses or args.register or args.optimize:
+        raise InputError("--tiles takes one input, without --poses, --register or --optimize")
+    if args.report is not None and args.report.suffix.lower() in HTML_SUFFIXES:
+        raise InputError(
+            f"{args.report}: with --tiles the points and planes stay on the workers; "
+            "write the report as .json"
+        )
+    tiles = args.tiles
+    if tiles != "auto":
+        try:
+            tiles = [int(count) for count in tiles.lower().split("x")]
+        except ValueError:
+            tiles = None
+        if tiles is None or len(tiles) != 3 or min(tiles) < 1:
+            raise InputError(
+                f"--tiles must be auto or NxMxK with positive N, M, K; got {args.tiles}"
+            )
+    if args.workers is not None and (args.workers < 1 or args.scheduler is not None):
+        raise InputError("--workers must be a positive count, for the local cluster only")
+    try:
+        from distributed import Client, LocalCluster
+    except ImportError as error:
+        raise InputError(
+            "--tiles runs on dask.distributed, which is not installed: "
+            "pip install 'zeroset[tiles]'"
+        ) from error
+    if args.scheduler is not None:
+        client, cluster = Client(args.scheduler), None
+    else:
+        cluster = LocalCluster(
+            n_workers=args.workers, threads_per_worker=1, processes=True, dashboard_address=None
+        )
+        client = Client(cluster)
+    try:
+        result = reconstruct_tiled(
+            args.input[0].resolve(), config, tiles=tiles, client=client, progress=not args.quiet
+        )
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+    return _finish(
+        result,
+        args,
+        points=None,
+        source=str(args.input[0]),
+        mesh_path=args.output,
+        report_paths=[args.report] if args.report else [],
+        preview_path=args.preview,
     )
 
 

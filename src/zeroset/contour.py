@@ -20,7 +20,7 @@ from ._mc_table import (
 from ._validate import as_points
 from .types import DistanceField, Mesh
 
-__all__ = ["marching_cubes", "method_of_cubes"]
+__all__ = ["keyed_marching_cubes", "marching_cubes", "method_of_cubes"]
 
 #: A sign change whose two values differ by more than this many cube sizes is not a zero
 #: crossing of a distance function (|grad f| = 1): it is where the nearest tangent plane
@@ -62,8 +62,36 @@ def marching_cubes(field: DistanceField) -> Mesh:
     crossings face by face so that neighbouring cubes always agree (no cracks); Hoppe et
     al. 1992, §3.5 (cubes with undefined corners are skipped).
     """
+    _, vertices, faces, _ = keyed_marching_cubes(field)
+    return Mesh(vertices=vertices, faces=faces)
+
+
+def keyed_marching_cubes(field: DistanceField, *, owned=None):
+    """Marching cubes with the global lattice keys of what it made, to weld tiles exactly.
+
+    Parameters
+    ----------
+    field : DistanceField
+    owned : ((3,), (3,)) int64 lattice indices, optional
+        Contour only the cubes whose lower corner (i, j, k) lies in ``[owned[0], owned[1])``.
+
+    Returns
+    -------
+    edge_keys : (V,) int64
+        Sorted global key of the lattice edge each vertex lies on: two pieces of one lattice
+        that share an edge share its key and, from the same corner values, its vertex.
+    vertices : (V, 3) float64
+    faces : (F, 3) int64
+        In the order of their cubes' keys, each cube's triangles in table order.
+    cube_keys : (F,) int64
+        The key of the cube each face was made in.
+    """
     keys = _lattice.encode(field.vertices_ijk)
     cube_keys, _, config = _crossed_cubes(field, keys)
+    if owned is not None:
+        ijk = _lattice.decode(cube_keys)
+        inside = np.all((ijk >= owned[0]) & (ijk < owned[1]), axis=1)
+        cube_keys, config = cube_keys[inside], config[inside]
     table, counts = case_table()
     per_cube = counts[config]
     cube_of_tri = np.repeat(np.arange(cube_keys.size), per_cube)
@@ -74,7 +102,7 @@ def marching_cubes(field: DistanceField) -> Mesh:
     )
     unique_edges, faces = np.unique(_edge_keys(lower, EDGE_AXIS[edges]), return_inverse=True)
     vertices = _edge_points(unique_edges, keys, field)
-    return Mesh(vertices=vertices, faces=faces.reshape(-1, 3).astype(np.int64))
+    return unique_edges, vertices, faces.reshape(-1, 3).astype(np.int64), cube_keys[cube_of_tri]
 
 
 def method_of_cubes(field: DistanceField, points, centroids, normals) -> Mesh:

@@ -158,102 +158,19 @@ def reconstruct(
             elif config.viewpoint is not None:
                 viewpoints = np.asarray(config.viewpoint, dtype=np.float64) - offset
         with stages.stage("parameters"):
-            parameters = estimate_parameters(
-                local,
-                k=config.radius_k,
-                quantile=config.quantile,
-                noise_factor=config.noise_factor,
-                cube_factor=config.cube_factor,
-                k_max=config.k_max,
-                rho_delta=config.rho_delta,
-                cube_size=config.cube_size,
-                averaging_cell=config.averaging_cell,
-                min_neighbours=config.min_neighbours,
-                rng=config.seed,
-            )
-        with stages.stage("neighbours"):
-            phase1 = local
-            if parameters.averaging_cell > 0.0:
-                per_point = () if viewpoints is None or viewpoints.ndim == 1 else (viewpoints,)
-                phase1, *averaged = average_in_cells(local, parameters.averaging_cell, *per_point)
-                viewpoints = averaged[0] if averaged else viewpoints
-            neighbours = knn(phase1, max(config.k_max, WIDE_K))
-            noise = parameters.noise
-            if viewpoints is not None:
-                noise, model = range_noise(phase1, neighbours, viewpoints, noise=noise)
-                stats["noise_model"] = {"intercept": model[0], "slope": model[1]}
-            sectors, _ = sector_distances(phase1, neighbours.indices, neighbours.distances)
-            radii = point_radii(
-                sectors,
-                neighbours,
-                rho_delta=parameters.rho_delta,
-                margin=config.noise_factor * noise,
-            )
-        with stages.stage("outliers"):
-            keep = drop_outliers(neighbours, radii, parameters.min_neighbours)
-            stats["outliers"] = int(np.count_nonzero(~keep))
-            phase1, neighbours = phase1[keep], restrict(neighbours, keep)
-            radii, sectors = radii[keep], sectors[keep]
-            if viewpoints is not None and viewpoints.ndim == 2:
-                viewpoints = viewpoints[keep]
-            stats["phase1_points"] = phase1.shape[0]
-            stats["widened_radii"] = int(np.count_nonzero(radii > parameters.rho_delta))
-            if phase1.shape[0] < config.k_max:
-                raise ReconstructionError(
-                    f"only {phase1.shape[0]} points are left after removing {stats['outliers']} "
-                    f"outliers (fewer than {parameters.min_neighbours} neighbours within "
-                    f"rho_delta={parameters.rho_delta:.4g}); increase rho_delta"
-                )
-        with stages.stage("tangent planes"):
-            planes = tangent_planes(
-                phase1,
-                radius=radii,
-                k_min=config.k_min,
-                k_max=config.k_max,
-                neighbours=neighbours,
-            )
-        with stages.stage("orientation"):
-            orientation = orient_normals(
-                planes.centroids,
-                planes.normals,
-                k=config.orient_k,
-                max_edge=2.0 * radii,
-                neighbours=neighbours,
-                viewpoints=viewpoints,
-            )
-            stats["orientation_components"] = orientation.n_components
-            if orientation.disagreement is not None:
-                stats["orientation_disagreement"] = orientation.disagreement
-        with stages.stage("signed distance"):
-            bridges = gap_bridges(phase1, sectors, rho_delta=parameters.rho_delta)
-            stats["gap_bridge_points"] = bridges.shape[0]
-            field_ = signed_distance(
-                local,
-                planes.centroids,
-                orientation.normals,
-                cube_size=parameters.cube_size,
-                radius=radii,
-                bridges=bridges,
-                bridge_reach=BRIDGE_REACH * parameters.rho_delta,
-            )
-            stats["grid_vertices"] = int(field_.values.size)
-            stats["undefined_grid_vertices"] = int(np.count_nonzero(np.isnan(field_.values)))
+            parameters = choose_parameters(local, config)
+        fitted = fit_planes(local, viewpoints, parameters, config, stats, stages)
+        field_ = distance_field(
+            local, fitted, fitted.orientation.normals, parameters, stats, stages
+        )
         with stages.stage("contour"):
             if config.contour == "cubes":
-                mesh = method_of_cubes(field_, phase1, planes.centroids, orientation.normals)
+                mesh = method_of_cubes(
+                    field_, fitted.points, fitted.planes.centroids, fitted.orientation.normals
+                )
             else:
                 mesh = marching_cubes(field_)
-            mesh, stats["bowtie_vertices_split"] = split_nonmanifold_vertices(mesh)
-            mesh, stats["small_holes_filled"] = fill_small_holes(mesh, config.max_hole_edges)
-            mesh, stats["small_components_dropped"] = remove_small_components(
-                mesh, config.min_component_faces
-            )
-            if mesh.n_faces == 0:
-                raise ReconstructionError(
-                    f"no surface: no cube of size {parameters.cube_size:.4g} has eight defined "
-                    f"corners with a sign change; rho_delta={parameters.rho_delta:.4g} may be "
-                    "too small for the point spacing"
-                )
+            mesh = repair(mesh, parameters, config, stats)
         initial_mesh = Mesh(vertices=mesh.vertices + offset, faces=mesh.faces)
         optimization = None
         if optimize:
@@ -274,21 +191,150 @@ def reconstruct(
     finally:
         stages.close()
     mesh = Mesh(vertices=mesh.vertices + offset, faces=mesh.faces)
-    stats.update(_mesh_stats(mesh))
+    stats.update(mesh_stats(mesh))
     return Reconstruction(
         mesh=mesh,
         initial_mesh=initial_mesh,
         optimization=optimization,
         offset=offset,
-        points=phase1,
+        points=fitted.points,
         parameters=parameters,
-        planes=planes,
-        orientation=orientation,
+        planes=fitted.planes,
+        orientation=fitted.orientation,
         field=field_,
         config=config,
         stats=stats,
         timings=dict(stages.timings),
     )
+
+
+def choose_parameters(local: np.ndarray, config: ReconstructionConfig) -> Parameters:
+    """Stage "parameters": `zeroset.parameters.estimate_parameters` with `config`'s knobs."""
+    return estimate_parameters(
+        local,
+        k=config.radius_k,
+        quantile=config.quantile,
+        noise_factor=config.noise_factor,
+        cube_factor=config.cube_factor,
+        k_max=config.k_max,
+        rho_delta=config.rho_delta,
+        cube_size=config.cube_size,
+        averaging_cell=config.averaging_cell,
+        min_neighbours=config.min_neighbours,
+        rng=config.seed,
+    )
+
+
+@dataclass(frozen=True, eq=False)
+class FittedPlanes:
+    """What phase 1 knows of the points once their tangent planes are oriented.
+
+    Attributes
+    ----------
+    points : (N, 3) float64
+        The points the planes were fitted to (averaged in cells, outliers dropped).
+    radii : (N,) float64
+        Per-point radius (`zeroset.density.point_radii`).
+    sectors : (N, 8) float64
+        Nearest distance per direction (`zeroset.density.sector_distances`).
+    planes : TangentPlanes
+    orientation : Orientation
+    """
+
+    points: np.ndarray
+    radii: np.ndarray
+    sectors: np.ndarray
+    planes: TangentPlanes
+    orientation: Orientation
+
+
+def fit_planes(local, viewpoints, parameters, config, stats, stages) -> FittedPlanes:
+    """Stages "neighbours" to "orientation" on points in the local frame; counts to `stats`."""
+    with stages.stage("neighbours"):
+        phase1 = local
+        if parameters.averaging_cell > 0.0:
+            per_point = () if viewpoints is None or viewpoints.ndim == 1 else (viewpoints,)
+            phase1, *averaged = average_in_cells(local, parameters.averaging_cell, *per_point)
+            viewpoints = averaged[0] if averaged else viewpoints
+        neighbours = knn(phase1, max(config.k_max, WIDE_K))
+        noise = parameters.noise
+        if viewpoints is not None:
+            noise, model = range_noise(phase1, neighbours, viewpoints, noise=noise)
+            stats["noise_model"] = {"intercept": model[0], "slope": model[1]}
+        sectors, _ = sector_distances(phase1, neighbours.indices, neighbours.distances)
+        radii = point_radii(
+            sectors,
+            neighbours,
+            rho_delta=parameters.rho_delta,
+            margin=config.noise_factor * noise,
+        )
+    with stages.stage("outliers"):
+        keep = drop_outliers(neighbours, radii, parameters.min_neighbours)
+        stats["outliers"] = int(np.count_nonzero(~keep))
+        phase1, neighbours = phase1[keep], restrict(neighbours, keep)
+        radii, sectors = radii[keep], sectors[keep]
+        if viewpoints is not None and viewpoints.ndim == 2:
+            viewpoints = viewpoints[keep]
+        stats["phase1_points"] = phase1.shape[0]
+        stats["widened_radii"] = int(np.count_nonzero(radii > parameters.rho_delta))
+        if phase1.shape[0] < config.k_max:
+            raise ReconstructionError(
+                f"only {phase1.shape[0]} points are left after removing {stats['outliers']} "
+                f"outliers (fewer than {parameters.min_neighbours} neighbours within "
+                f"rho_delta={parameters.rho_delta:.4g}); increase rho_delta"
+            )
+    with stages.stage("tangent planes"):
+        planes = tangent_planes(
+            phase1, radius=radii, k_min=config.k_min, k_max=config.k_max, neighbours=neighbours
+        )
+    with stages.stage("orientation"):
+        orientation = orient_normals(
+            planes.centroids,
+            planes.normals,
+            k=config.orient_k,
+            max_edge=2.0 * radii,
+            neighbours=neighbours,
+            viewpoints=viewpoints,
+        )
+        stats["orientation_components"] = orientation.n_components
+        if orientation.disagreement is not None:
+            stats["orientation_disagreement"] = orientation.disagreement
+    return FittedPlanes(phase1, radii, sectors, planes, orientation)
+
+
+def distance_field(local, fitted, normals, parameters, stats, stages) -> DistanceField:
+    """Stage "signed distance": the field of the planes of `fitted` turned by `normals`."""
+    with stages.stage("signed distance"):
+        bridges = gap_bridges(fitted.points, fitted.sectors, rho_delta=parameters.rho_delta)
+        stats["gap_bridge_points"] = bridges.shape[0]
+        field_ = signed_distance(
+            local,
+            fitted.planes.centroids,
+            normals,
+            cube_size=parameters.cube_size,
+            radius=fitted.radii,
+            bridges=bridges,
+            bridge_reach=BRIDGE_REACH * parameters.rho_delta,
+        )
+        stats["grid_vertices"] = int(field_.values.size)
+        stats["undefined_grid_vertices"] = int(np.count_nonzero(np.isnan(field_.values)))
+    return field_
+
+
+def repair(mesh: Mesh, parameters, config, stats) -> Mesh:
+    """Split bow-tie vertices, close small holes, drop tiny components; counts to `stats`."""
+    mesh, stats["bowtie_vertices_split"] = split_nonmanifold_vertices(mesh)
+    mesh, stats["small_holes_filled"] = fill_small_holes(mesh, config.max_hole_edges)
+    mesh, stats["small_components_dropped"] = remove_small_components(
+        mesh, config.min_component_faces
+    )
+    if mesh.n_faces == 0:
+        raise ReconstructionError(
+            f"no surface: no cube of size {parameters.cube_size:.4g} has eight defined "
+            f"corners with a sign change; rho_delta={parameters.rho_delta:.4g} may be "
+            "too small for the point spacing"
+        )
+    return mesh
 
 
 def _prepare(points: np.ndarray, config: ReconstructionConfig, stats: dict) -> np.ndarray:
@@ -340,7 +386,7 @@ def _check_spread(points: np.ndarray) -> None:
         raise InputError("the points are collinear; no surface can be reconstructed")
 
 
-def _mesh_stats(mesh: Mesh) -> dict:
+def mesh_stats(mesh: Mesh) -> dict:
     """Counts that describe a mesh: vertices, faces, boundary loops, Euler characteristic."""
     return {
         "vertices": mesh.n_vertices,

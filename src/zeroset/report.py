@@ -37,7 +37,7 @@ def reconstruction_report(
 
     Parameters
     ----------
-    result : Reconstruction
+    result : Reconstruction or zeroset.tiles.TiledReconstruction
     source : str, optional
         Where the points came from, for the record.
     points : (N, 3) array_like of float, optional
@@ -87,7 +87,7 @@ def reconstruction_report(
         report["reading"] = {name: v for name, v in reading.items() if name != "seconds"}
     if registration is not None:
         report["registration"] = {k: v for k, v in registration.items() if k != "seconds"}
-    if result.optimization is not None:
+    if getattr(result, "optimization", None) is not None:
         report["optimization"] = optimization_report(result.optimization)
     if points is not None:
         points = as_points(points)
@@ -175,6 +175,7 @@ def format_report(report: dict) -> str:
         *_registration_lines(report.get("registration")),
         *(f"parameter   {note}" for note in report["parameters"]["notes"]),
         *_density_lines(stats),
+        *_tile_lines(stats),
         f"orientation {stats['orientation_components']} component(s)"
         + _disagreement(stats.get("orientation_disagreement")),
         f"grid        {stats['grid_vertices']:,} vertices evaluated, "
@@ -217,6 +218,21 @@ def _registration_lines(registration: dict | None) -> list[str]:
         f"{scan['residual_after']:.4g}, overlap {scan['overlap_before']:.0%} -> "
         f"{scan['overlap_after']:.0%} (pairs within {registration['max_distance']:.4g})"
         for scan in registration["scans"]
+    ]
+
+
+def _tile_lines(stats: dict) -> list[str]:
+    """One line on a tiled run: the tiles, the flips that joined them, worker memory."""
+    if "tile_grid" not in stats:
+        return []
+    peaks = stats["worker_peak_mib"].values()
+    share = stats["seam_disagreement"]
+    return [
+        f"tiles       {stats['tiles']} ({'x'.join(map(str, stats['tile_grid']))}); "
+        f"{stats['tile_components_flipped']} tile component(s) flipped to agree at the seams"
+        + ("" if share is None else f", where {share:.2%} of the shared points still disagree")
+        + f"; peak memory per worker {min(peaks, default=0):,.0f}-"
+        f"{max(peaks, default=0):,.0f} MiB on {len(stats['worker_peak_mib'])} worker(s)"
     ]
 
 

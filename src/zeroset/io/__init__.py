@@ -29,6 +29,7 @@ __all__ = [
     "POSE_FORMATS",
     "atomic_target",
     "check_output",
+    "point_bounds",
     "read_mesh",
     "read_points",
     "read_poses",
@@ -182,6 +183,37 @@ def read_points(
         source=os.fspath(path),
         reduction=counts,
     )
+
+
+def point_bounds(
+    path: str | os.PathLike, *, chunk_points: int = CHUNK_POINTS
+) -> tuple[np.ndarray, np.ndarray, int]:
+    """Bounding box ``(low (3,), high (3,))`` and number of the points of a file.
+
+    LAS, LAZ and binary PLY files are read `chunk_points` at a time, so only a chunk is in
+    memory at once; other formats are read whole.
+
+    Raises
+    ------
+    InputError
+        As `read_points`.
+    """
+    target, reader = _existing(path, _POINT_READERS, "point")
+    chunks = _POINT_CHUNKS.get(target.suffix.lower())
+    low, high, count = np.full(3, np.inf), np.full(3, -np.inf), 0
+    with _about(path, "read"):
+        parts = chunks(target, int(chunk_points)) if chunks else [reader(target)]
+        for part in parts:
+            points = _columns(part)["points"] if len(part["points"]) else np.zeros((0, 3))
+            if len(points):
+                low, high = (
+                    np.minimum(low, points.min(axis=0)),
+                    np.maximum(high, points.max(axis=0)),
+                )
+                count += len(points)
+        if count == 0:
+            raise InputError("contains no points")
+    return low, high, count
 
 
 def read_poses(path: str | os.PathLike) -> tuple[list[str] | None, np.ndarray]:

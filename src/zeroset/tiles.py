@@ -1,0 +1,562 @@
+"""Phase 1 in tiles on Dask: one global lattice, halos, orientation agreed, seams welded.
+
+The cloud's contouring lattice is cut into boxes of whole cubes. Each tile reads its own
+points (its box and a halo around it, straight from the file), fits and orients its tangent
+planes, and contours only the cubes it owns. Tiles agree on the sign of their normals where
+their halos overlap, and the pieces are welded by the global keys of the lattice edges
+their vertices lie on: two tiles compute the vertex of a shared edge from the same corner
+values, so the welded mesh has no seam.
+"""
+
+from __future__ import annotations
+
+import math
+import resource
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ._lattice import LIMIT
+from ._progress import Stages
+from ._validate import as_points
+from .config import ReconstructionConfig
+from .contour import keyed_marching_cubes
+from .errors import InputError, ReconstructionError
+from .neighbours import spatial_order
+from .pipeline import choose_parameters, distance_field, fit_planes, mesh_stats, repair
+from .types import Mesh, Parameters
+
+__all__ = ["TiledReconstruction", "plan_tiles", "reconstruct_tiled"]
+
+#: Halo around a tile's box: neighbourhoods, radii, bridges and the nearest planes of its
+#: border cubes all lie within this many rho_delta (and HALO_CUBES cubes) of the box.
+HALO_RADII = 8.0
+HALO_CUBES = 2
+#: Points per tile that ``tiles="auto"`` aims at.
+AUTO_TILE_POINTS = 2_000_000
+#: Fewest points a tile must hold to be reconstructed; emptier tiles hold no surface.
+MIN_TILE_POINTS = 32
+
+
+@dataclass(frozen=True)
+class Tile:
+    """One box of the lattice and what a task needs to reconstruct it.
+
+    Attributes
+    ----------
+    index : (3,) tuple of int
+        Position in the grid of tiles.
+    owned : ((3,), (3,)) tuple of int64 arrays
+        Lattice indices ``[lo, hi)`` of the lower corners of the cubes it contours.
+    box : (6,) float64
+        ``xmin, ymin, zmin, xmax, ymax, zmax`` of its points, halo included, in input
+        coordinates.
+    """
+
+    index: tuple[int, int, int]
+    owned: tuple[np.ndarray, np.ndarray]
+    box: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class TiledReconstruction:
+    """The welded mesh of a tiled reconstruction, with what was chosen, counted and spent.
+
+    Attributes
+    ----------
+    mesh : Mesh
+        In the input's coordinates.
+    offset : (3,) float64
+        Origin of the local frame the tiles worked in (the lattice's origin).
+    parameters : Parameters
+    config : ReconstructionConfig
+    tiles : list of Tile
+    stats : dict
+        Counts summed over the tiles (halo points counted by every tile that reads them);
+        ``tiles`` and ``tile_grid`` (tiles per axis); ``orientation_components`` (groups of
+        tiles' components joined at seams), ``tile_components_flipped`` and
+        ``seam_disagreement`` (the share of seam points held by two tiles whose normals
+        still point apart, None without seams); ``worker_peak_mib`` (peak resident memory of each
+        worker process, by address); the welded mesh's counts.
+    timings : dict
+        Wall-clock seconds of each pass.
+    """
+
+    mesh: Mesh
+    offset: np.ndarray
+    parameters: Parameters
+    config: ReconstructionConfig
+    tiles: list
+    stats: dict = field(default_factory=dict)
+    timings: dict = field(default_factory=dict)
+
+
+def plan_tiles(low, high, offset, parameters: Parameters, counts) -> list[Tile]:
+    """Cut the lattice over the box ``[low, high]`` into ``counts`` (3,) tiles per axis.
+
+    The lattice is the reconstruction's: cubes of ``parameters.cube_size`` from `offset`.
+    Every cube belongs to exactly one tile; the outermost tiles own everything beyond.
+    """
+    cube = parameters.cube_size
+    first = np.floor((np.asarray(low) - offset) / cube).astype(np.int64)
+    last = np.floor((np.asarray(high) - offset) / cube).astype(np.int64) + 1
+    halo = HALO_RADII * parameters.rho_delta + HALO_CUBES * cube
+    cuts = [
+        np.linspace(first[a], last[a], int(counts[a]) + 1).round().astype(np.int64)
+        for a in range(3)
+    ]
+    tiles = []
+    for index in np.ndindex(*(int(c) for c in counts)):
+        lo = np.array([cuts[a][index[a]] for a in range(3)])
+        hi = np.array([cuts[a][index[a] + 1] for a in range(3)])
+        lo = np.where(np.array(index) == 0, -LIMIT, lo)
+        hi = np.where(np.array(index) == np.asarray(counts) - 1, LIMIT, hi)
+        box_lo = offset + cube * np.maximum(lo, first) - halo
+        box_hi = offset + cube * np.minimum(hi, last) + halo
+        tiles.append(
+            Tile(index=tuple(int(i) for i in index), owned=(lo, hi), box=np.r_[box_lo, box_hi])
+        )
+    return tiles
+
+
+def reconstruct_tiled(
+    source,
+    config: ReconstructionConfig | None = None,
+    *,
+    tiles="auto",
+    client=None,
+    parameters: Parameters | None = None,
+    progress: bool = False,
+    **overrides,
+) -> TiledReconstruction:
+    """Phase 1 (`zeroset.reconstruct`) in tiles run as Dask tasks, welded into one mesh.
+
+    Parameters
+    ----------
+    source : str or os.PathLike or (N, 3) array_like of float
+        A point file (each task reads its own tile from it, LAS, LAZ and binary PLY a chunk
+        at a time) or the points themselves.
+    config : ReconstructionConfig, optional
+        As for `zeroset.reconstruct`; ``sample`` and ``voxel_size`` are not supported here,
+        and only marching cubes contours tiles.
+    tiles : "auto" or (3,) ints
+        Tiles per axis; "auto" aims at ``AUTO_TILE_POINTS`` per tile, cutting the longest
+        axes first.
+    client : distributed.Client, optional
+        Where the tasks run; a local cluster of one worker process per core by default.
+    parameters : Parameters, optional
+        Use these instead of estimating them. Given the parameters `zeroset.reconstruct`
+        chose, the tiled mesh is the untiled one (same vertices and faces).
+    progress : bool
+        Show a progress bar over the tiles when stderr is a terminal.
+
+    Returns
+    -------
+    TiledReconstruction
+    """
+    config = (config or ReconstructionConfig()).with_overrides(**overrides)
+    if config.sample is not None or config.voxel_size is not None:
+        raise InputError("--sample and --voxel are not supported with tiles; use --crop")
+    if config.contour != "marching":
+        raise InputError("tiles are contoured by marching cubes only; drop --contour cubes")
+    if client is None:
+        from distributed import Client, LocalCluster
+
+        with LocalCluster(processes=True, threads_per_worker=1, dashboard_address=None) as cluster:
+            with Client(cluster) as local:
+                return reconstruct_tiled(
+                    source,
+                    config,
+                    tiles=tiles,
+                    client=local,
+                    parameters=parameters,
+                    progress=progress,
+                )
+    if not isinstance(source, (str, bytes)) and not hasattr(source, "__fspath__"):
+        source = as_points(source)
+    timings: dict = {}
+    start = time.perf_counter()
+    low, high, n_points = client.submit(_bounds, source, config.crop, pure=False).result()
+    if n_points < config.k_max:
+        raise InputError(
+            f"only {n_points} points; a neighbourhood needs at least k_max={config.k_max}"
+        )
+    offset = (low + high) / 2.0
+    counts = _counts(tiles, low, high, n_points)
+    timings["bounds"] = time.perf_counter() - start
+    if parameters is None:
+        start = time.perf_counter()
+        parameters = _estimate(client, source, config, low, high, offset, counts, progress)
+        timings["parameters"] = time.perf_counter() - start
+    plan = plan_tiles(low, high, offset, parameters, counts)
+
+    start = time.perf_counter()
+    fits = [
+        client.submit(_fit_tile, source, tile, offset, parameters, config, pure=False)
+        for tile in plan
+    ]
+    seams = [client.submit(_seam, fit, parameters, pure=False) for fit in fits]
+    flips, disagreement, groups = _agree(_gather(client, seams, "orienting", progress))
+    timings["fit"] = time.perf_counter() - start
+
+    start = time.perf_counter()
+    pieces = [
+        client.submit(_contour_tile, fit, flip, parameters, pure=False)
+        for fit, flip in zip(fits, flips, strict=True)
+    ]
+    pieces = _gather(client, pieces, "contouring", progress)
+    del fits
+    timings["contour"] = time.perf_counter() - start
+
+    start = time.perf_counter()
+    stats = {"input_points": n_points, "tiles": len(plan)}
+    for piece in pieces:
+        for key, value in piece["stats"].items():
+            stats[key] = stats.get(key, 0) + value
+    stats["orientation_components"] = groups
+    stats["seam_disagreement"] = disagreement
+    stats["tile_grid"] = [int(c) for c in counts]
+    stats["tile_components_flipped"] = sum(len(flip) for flip in flips)
+    mesh = repair(_weld(pieces), parameters, config, stats)
+    mesh = Mesh(vertices=mesh.vertices + offset, faces=mesh.faces)
+    stats.update(mesh_stats(mesh))
+    timings["weld"] = time.perf_counter() - start
+    peaks: dict = {}
+    for piece in pieces:
+        peaks[piece["worker"]] = max(peaks.get(piece["worker"], 0.0), piece["peak_mib"])
+    stats["worker_peak_mib"] = peaks
+    return TiledReconstruction(
+        mesh=mesh,
+        offset=offset,
+        parameters=parameters,
+        config=config,
+        tiles=plan,
+        stats=stats,
+        timings=timings,
+    )
+
+
+def _counts(tiles, low, high, n_points) -> np.ndarray:
+    """Tiles per axis (3,): as given, or enough for AUTO_TILE_POINTS each, longest axes cut."""
+    if not isinstance(tiles, str):
+        counts = np.asarray(tiles, dtype=np.int64).reshape(-1)
+        if counts.shape != (3,) or (counts < 1).any():
+            raise InputError(f"tiles must be three positive counts NxMxK; got {tiles!r}")
+        return counts
+    if tiles != "auto":
+        raise InputError(f"tiles must be 'auto' or NxMxK; got {tiles!r}")
+    wanted = max(1, math.ceil(n_points / AUTO_TILE_POINTS))
+    counts = np.ones(3, dtype=np.int64)
+    extent = np.maximum(np.asarray(high) - np.asarray(low), 1e-300)
+    while counts.prod() < wanted:
+        counts[np.argmax(extent / counts)] += 1
+    return counts
+
+
+def _read(source, box, crop=None) -> tuple[np.ndarray, np.ndarray | None]:
+    """Points (N, 3) inside `box` (6,) and `crop` (6,), and their sensor positions, from a
+    file or an array."""
+    if crop is not None:
+        box = np.r_[np.maximum(box[:3], crop[:3]), np.minimum(box[3:], crop[3:])]
+        if np.any(box[:3] > box[3:]):
+            return np.zeros((0, 3)), None
+    if isinstance(source, np.ndarray):
+        inside = np.all((source >= box[:3]) & (source <= box[3:]), axis=1)
+        return source[inside], None
+    from . import io
+
+    try:
+        cloud = io.read_points(source, crop=box)
+    except InputError as error:
+        if "no points left" in str(error):
+            return np.zeros((0, 3)), None
+        raise
+    return cloud.points, cloud.viewpoints
+
+
+def _bounds(source, crop) -> tuple[np.ndarray, np.ndarray, int]:
+    """Bounding box (3,), (3,) and count of the points (inside `crop`), read in chunks."""
+    if crop is not None:
+        crop = np.asarray(crop, dtype=np.float64)
+        points, _ = _read(source, crop)
+        if len(points) == 0:
+            raise InputError("no points inside --crop")
+        return points.min(axis=0), points.max(axis=0), len(points)
+    if isinstance(source, np.ndarray):
+        return source.min(axis=0), source.max(axis=0), len(source)
+    from . import io
+
+    return io.point_bounds(source)
+
+
+def _estimate(client, source, config, low, high, offset, counts, progress) -> Parameters:
+    """Parameters estimated in every tile on its own points; the tile of median rho_delta wins."""
+    boxes = []
+    for index in np.ndindex(*(int(c) for c in counts)):
+        lo = low + (high - low) * np.array(index) / counts
+        hi = low + (high - low) * (np.array(index) + 1) / counts
+        boxes.append(np.r_[lo, hi])
+    estimates = _gather(
+        client,
+        [client.submit(_estimate_tile, source, box, offset, config, pure=False) for box in boxes],
+        "parameters",
+        progress,
+    )
+    estimates = sorted((e for e in estimates if e is not None), key=lambda e: e[0].rho_delta)
+    if not estimates:
+        raise ReconstructionError("no tile holds enough points to estimate the parameters")
+    weights = np.cumsum([count for _, count in estimates])
+    return estimates[int(np.searchsorted(weights, weights[-1] / 2.0))][0]
+
+
+def _estimate_tile(source, box, offset, config) -> tuple[Parameters, int] | None:
+    """Parameters of the points in `box` and their count (a Dask task); None if too few."""
+    points, _ = _read(source, box, config.crop)
+    if len(points) < max(config.k_max, 1000):
+        return None
+    local = points - offset
+    return choose_parameters(local[spatial_order(local)], config), len(points)
+
+
+def _fit_tile(source, tile: Tile, offset, parameters, config) -> dict | None:
+    """Read a tile, fit and orient its planes (a Dask task; the result stays on the worker)."""
+    points, viewpoints = _read(source, tile.box, config.crop)
+    if len(points) < max(MIN_TILE_POINTS, config.k_max):
+        return None
+    order = spatial_order(points)
+    local = points[order] - offset
+    if viewpoints is not None:
+        viewpoints = viewpoints[order] - offset
+    elif config.viewpoint is not None:
+        viewpoints = np.asarray(config.viewpoint, dtype=np.float64) - offset
+    stats: dict = {}
+    try:
+        fitted = fit_planes(local, viewpoints, parameters, config, stats, Stages((), show=False))
+    except ReconstructionError:
+        return None
+    return {"tile": tile, "local": local, "fitted": fitted, "stats": stats}
+
+
+def _seam(fit: dict | None, parameters: Parameters) -> dict | None:
+    """A tile's oriented normals at its seams, keyed by the points, and its extremes.
+
+    The seam is the band within half the halo of the faces the tile shares with others:
+    there both tiles hold the points with their whole neighbourhoods.
+    """
+    if fit is None:
+        return None
+    tile, fitted = fit["tile"], fit["fitted"]
+    points, normals = fitted.points, fitted.orientation.normals
+    component = fitted.orientation.component
+    cube = parameters.cube_size
+    lo, hi = _owned_box(tile, cube)
+    width = 0.5 * (HALO_RADII * parameters.rho_delta + HALO_CUBES * cube)
+    near = np.all((points >= lo - width) & (points <= hi + width), axis=1) & np.any(
+        (np.abs(points - lo) < width) | (np.abs(points - hi) < width), axis=1
+    )
+    owned = np.all((points >= lo) & (points < hi), axis=1)
+    return {
+        "keys": _point_keys(points[near]),
+        "normals": normals[near],
+        "component": component[near],
+        "extremes": _extremes(
+            fitted.planes.centroids[owned], normals[owned], component[owned], fitted
+        ),
+        "n_components": fitted.orientation.n_components,
+        "sensors": fitted.orientation.disagreement is not None,
+    }
+
+
+def _owned_box(tile: Tile, cube: float) -> tuple[np.ndarray, np.ndarray]:
+    """Corners (3,), (3,) of the cubes a tile owns, in the local frame (+-inf outside)."""
+    lo = np.where(tile.owned[0] <= -LIMIT, -np.inf, cube * tile.owned[0].astype(np.float64))
+    hi = np.where(tile.owned[1] >= LIMIT, np.inf, cube * tile.owned[1].astype(np.float64))
+    return lo, hi
+
+
+def _point_keys(points: np.ndarray) -> np.ndarray:
+    """(N,) keys identifying points by their exact coordinates."""
+    return np.ascontiguousarray(points).view(np.dtype((np.void, 24))).ravel()
+
+
+def _extremes(centroids, normals, component, fitted) -> np.ndarray:
+    """(C, 6, 2): per component and direction +x, -x, +y, -y, +z, -z, the coordinate of the
+    centroid of its owned point farthest that way and that point's normal's cosine with the
+    direction (-inf for a component with no owned point), as the orientation's roots."""
+    out = np.full((fitted.orientation.n_components, 6, 2), -np.inf)
+    for d in range(6):
+        axis, sign = d // 2, 1.0 - 2.0 * (d % 2)
+        coordinate = sign * centroids[:, axis]
+        order = np.lexsort((coordinate, component))
+        last = np.r_[component[order][1:] != component[order][:-1], True] if order.size else order
+        rows = order[last]
+        out[component[rows], d, 0] = coordinate[rows]
+        out[component[rows], d, 1] = sign * normals[rows, axis]
+    return out
+
+
+def _agree(seams) -> tuple[list[dict], float | None, int]:
+    """Flips that make the tiles' orientations agree, as `zeroset.reconstruct` would orient.
+
+    Every (tile, component) pair is a node; two nodes that hold the same seam points are
+    joined, agreeing where most of those points' normals point alike. A spanning forest,
+    largest overlaps first, fixes each node's sign relative to its group; each group then
+    takes the sign of its most extreme point along one of +-x, +-y, +-z (the root rule of
+    `zeroset.orientation.orient_normals`). Tiles oriented by sensors keep their signs.
+
+    Returns
+    -------
+    flips : list of dict
+        Per tile, {component: -1.0} for the components to negate.
+    disagreement : float or None
+        Share of the seam points held by two tiles whose normals still point apart.
+    groups : int
+        Number of groups of nodes joined by seams that hold points a tile owns.
+    """
+    live = [i for i, seam in enumerate(seams) if seam is not None]
+    flips: list[dict] = [{} for _ in seams]
+    if not live:
+        return flips, None, 0
+    first_node = np.cumsum([0] + [seams[i]["n_components"] for i in live])
+    keys = np.concatenate([seams[i]["keys"] for i in live])
+    node = np.concatenate([first_node[k] + seams[i]["component"] for k, i in enumerate(live)])
+    normals = np.concatenate([seams[i]["normals"] for i in live])
+    order = np.argsort(keys, kind="stable")
+    same = keys[order][1:] == keys[order][:-1]
+    a, b = order[:-1][same], order[1:][same]
+    a, b = a[node[a] != node[b]], b[node[a] != node[b]]
+    alike = np.einsum("ij,ij->i", normals[a], normals[b]) >= 0.0
+    sign = np.ones(int(first_node[-1]))
+    group = np.arange(sign.size)
+    if not all(seams[i]["sensors"] for i in live):
+        _spanning_signs(node[a], node[b], alike, sign, group)
+        _root_signs(np.concatenate([seams[i]["extremes"] for i in live]), sign, group)
+    disagreement = None
+    if a.size:
+        disagreement = float(np.mean((sign[node[a]] * sign[node[b]] > 0) != alike))
+    for k, tile in enumerate(live):
+        local = sign[first_node[k] : first_node[k + 1]]
+        flips[tile] = {int(c): -1.0 for c in np.flatnonzero(local < 0)}
+    extremes = np.concatenate([seams[i]["extremes"] for i in live])
+    owning = np.isfinite(extremes[:, :, 0]).any(axis=1)  # nodes with points of their own
+    return flips, disagreement, int(np.unique(group[owning]).size)
+
+
+def _spanning_signs(u, v, alike, sign, group) -> None:
+    """Signs and groups of the nodes from matched points (u, v, alike), the node pairs with
+    the largest majorities first (Kruskal's order), by a union-find with parity."""
+    parent, parity = np.arange(sign.size), np.zeros(sign.size, dtype=np.int64)
+
+    def find(x):
+        flip = 0
+        while parent[x] != x:
+            flip ^= parity[x]
+            x = parent[x]
+        return x, flip
+
+    pairs, inverse = np.unique(
+        np.sort(np.stack([u, v], axis=1), axis=1), axis=0, return_inverse=True
+    )
+    votes = np.bincount(inverse.ravel(), weights=np.where(alike, 1.0, -1.0), minlength=len(pairs))
+    for (p, q), vote in sorted(
+        zip(pairs.tolist(), votes.tolist(), strict=True), key=lambda e: -abs(e[1])
+    ):
+        (rp, fp), (rq, fq) = find(p), find(q)
+        if rp != rq:
+            parent[rq], parity[rq] = rp, fp ^ fq ^ (0 if vote >= 0 else 1)
+    for x in range(sign.size):
+        root, flip = find(x)
+        group[x], sign[x] = root, -1.0 if flip else 1.0
+
+
+def _root_signs(extremes, sign, group) -> None:
+    """Turn each group so that its most extreme point's normal points outward."""
+    for g in np.unique(group):
+        members = np.flatnonzero(group == g)
+        coordinate = extremes[members, :, 0]
+        best = np.argmax(coordinate, axis=0)  # per direction, the member farthest that way
+        found = np.isfinite(coordinate[best, np.arange(6)])
+        if not found.any():
+            continue
+        alignment = np.where(found, extremes[members[best], np.arange(6), 1], 0.0)
+        alignment = alignment * sign[members[best]]
+        d = int(np.argmax(np.abs(alignment)))
+        if alignment[d] < 0.0:
+            sign[members] *= -1.0
+
+
+def _contour_tile(fit: dict | None, flips: dict, parameters: Parameters) -> dict:
+    """Contour the cubes a tile owns (a Dask task)."""
+    import socket
+
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    worker = socket.gethostname()
+    try:
+        from distributed import get_worker
+
+        worker = get_worker().address
+    except ValueError:
+        pass
+    empty = {
+        "edge_keys": np.zeros(0, dtype=np.int64),
+        "vertices": np.zeros((0, 3)),
+        "faces": np.zeros((0, 3), dtype=np.int64),
+        "cube_keys": np.zeros(0, dtype=np.int64),
+        "stats": {},
+        "peak_mib": peak,
+        "worker": worker,
+    }
+    if fit is None:
+        return empty
+    fitted, stats = fit["fitted"], dict(fit["stats"])
+    sign = np.ones(fitted.orientation.n_components)
+    for component, flip in flips.items():
+        sign[component] = flip
+    normals = fitted.orientation.normals * sign[fitted.orientation.component][:, None]
+    field_ = distance_field(
+        fit["local"], fitted, normals, parameters, stats, Stages((), show=False)
+    )
+    edge_keys, vertices, faces, cube_keys = keyed_marching_cubes(field_, owned=fit["tile"].owned)
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    return {
+        **empty,
+        "edge_keys": edge_keys,
+        "vertices": vertices,
+        "faces": faces,
+        "cube_keys": cube_keys,
+        "stats": stats,
+        "peak_mib": peak,
+    }
+
+
+def _weld(pieces) -> Mesh:
+    """One mesh of the tiles' pieces: vertices shared by global edge key, faces in cube order."""
+    keys = np.concatenate([p["edge_keys"] for p in pieces])
+    vertices = np.concatenate([p["vertices"] for p in pieces])
+    starts = np.cumsum([0] + [len(p["edge_keys"]) for p in pieces[:-1]])
+    faces = np.concatenate([p["faces"] + s for p, s in zip(pieces, starts, strict=True)])
+    cube_keys = np.concatenate([p["cube_keys"] for p in pieces])
+    unique, first, inverse = np.unique(keys, return_index=True, return_inverse=True)
+    order = np.argsort(cube_keys, kind="stable")
+    return Mesh(vertices=vertices[first], faces=inverse[faces[order]].astype(np.int64))
+
+
+def _gather(client, futures, what: str, progress: bool) -> list:
+    """Results of `futures` in order, with a bar over those done."""
+    import sys
+
+    from distributed import as_completed
+    from tqdm.auto import tqdm
+
+    bar = tqdm(
+        total=len(futures),
+        desc=what,
+        unit="tile",
+        disable=not (progress and sys.stderr.isatty()),
+        leave=False,
+    )
+    for _ in as_completed(futures):
+        bar.update()
+    bar.close()
+    return client.gather(futures)

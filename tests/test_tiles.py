@@ -1,0 +1,145 @@
+"""Tiled reconstruction on a dask.distributed cluster: the same mesh as without tiles."""
+
+import json
+
+import distributed
+import numpy as np
+import pytest
+
+from zeroset import io, reconstruct, topology
+from zeroset.cli import main
+from zeroset.synthetic import sample_tee, sample_torus
+from zeroset.tiles import _agree, plan_tiles, reconstruct_tiled
+
+
+@pytest.fixture(scope="module")
+def client():
+    """A local cluster of two worker processes, one thread each."""
+    with (
+        distributed.LocalCluster(
+            n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
+        ) as cluster,
+        distributed.Client(cluster) as client,
+    ):
+        yield client
+
+
+def _same_mesh(tiled, untiled):
+    assert tiled.n_vertices == untiled.n_vertices and tiled.n_faces == untiled.n_faces
+    np.testing.assert_allclose(tiled.vertices, untiled.vertices, rtol=0, atol=1e-9)
+    np.testing.assert_array_equal(tiled.faces, untiled.faces)
+
+
+def _wavy_sheet(n, seed):
+    """An open sheet z = 0.15 sin 3x cos 2y over [-1, 1]^2 with 3 mm noise: its tiles'
+    own roots point up in some, down in others, so they must be flipped to agree."""
+    rng = np.random.default_rng(seed)
+    xy = rng.uniform(-1.0, 1.0, (n, 2))
+    z = 0.15 * np.sin(3 * xy[:, 0]) * np.cos(2 * xy[:, 1]) + rng.normal(0.0, 0.003, n)
+    return np.column_stack([xy, z])
+
+
+@pytest.mark.parametrize(
+    "points, tiles, closed",
+    [
+        (sample_torus(30_000, noise=0.005, rng=3).points, (3, 3, 3), True),
+        (sample_tee(40_000, rng=4).points, (3, 3, 3), False),
+        (_wavy_sheet(40_000, 1), (4, 4, 1), False),
+    ],
+    ids=["torus", "tee", "sheet"],
+)
+def test_tiled_mesh_is_the_untiled_mesh(client, points, tiles, closed):
+    untiled = reconstruct(points)
+    tiled = reconstruct_tiled(points, tiles=tiles, client=client, parameters=untiled.parameters)
+    _same_mesh(tiled.mesh, untiled.mesh)
+    assert tiled.stats["tiles"] == np.prod(tiles) and tiled.stats["seam_disagreement"] == 0.0
+    if tiles == (4, 4, 1):
+        assert tiled.stats["tile_components_flipped"] > 0
+    assert topology.is_edge_manifold(tiled.mesh.faces)
+    assert topology.is_consistently_oriented(tiled.mesh.faces)
+    if closed:  # no boundary edge anywhere, so none along the seams
+        assert topology.boundary_loops(tiled.mesh.faces) == []
+    # The surface does cross the seams: every cut plane has vertices within a cube of it.
+    lattice = (tiled.mesh.vertices - tiled.offset) / tiled.parameters.cube_size
+    cuts = {(a, int(t.owned[0][a])) for t in tiled.tiles for a in range(3) if t.index[a] > 0}
+    assert cuts and all(np.any(np.abs(lattice[:, a] - cut) < 1.0) for a, cut in cuts)
+
+
+def test_every_cube_belongs_to_one_tile():
+    untiled = reconstruct(sample_torus(5_000, rng=1).points)
+    p = untiled.parameters
+    tiles = plan_tiles(
+        np.array([-1.5, -1.5, -0.5]), np.array([1.5, 1.5, 0.5]), np.zeros(3), p, (3, 2, 4)
+    )
+    rng = np.random.default_rng(0)
+    cubes = rng.integers(-200, 200, size=(5000, 3))
+    owners = sum(np.all((cubes >= t.owned[0]) & (cubes < t.owned[1]), axis=1) for t in tiles)
+    assert np.all(owners == 1)
+    # Each tile reads its own box and a halo around it, not the whole cloud.
+    widths = np.array([t.box[3:] - t.box[:3] for t in tiles])
+    assert np.all(widths[:, 0] < 3.0 / 3 + 2 * (8 * p.rho_delta + 3 * p.cube_size))
+
+
+def _seam(keys, normals, extremes):
+    points = np.array(keys, dtype=np.float64)
+    return {
+        "keys": np.ascontiguousarray(points).view(np.dtype((np.void, 24))).ravel(),
+        "normals": np.array(normals, dtype=np.float64),
+        "component": np.zeros(len(keys), dtype=np.int64),
+        "extremes": np.array(extremes, dtype=np.float64)[None],
+        "n_components": 1,
+        "sensors": False,
+    }
+
+
+def test_tiles_that_orient_oppositely_are_flipped_to_agree():
+    # Two tiles share three seam points; the second oriented them the other way. The
+    # first holds the point farthest along +x, whose normal points along -x: so both flip.
+    shared = [[0.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 2.0, 0.0]]
+    up, down = [[1.0, 0.0, 0.0]] * 3, [[-1.0, 0.0, 0.0]] * 3
+    far = np.full((6, 2), -np.inf)
+    far[0] = [5.0, -1.0]  # +x: coordinate 5, normal against +x
+    near = np.full((6, 2), -np.inf)
+    near[0] = [1.0, 1.0]
+    flips, disagreement, groups = _agree([_seam(shared, up, far), None, _seam(shared, down, near)])
+    assert flips == [{0: -1.0}, {}, {}]
+    assert disagreement == 0.0 and groups == 1
+    # Three tiles whose pairs cannot all agree (0 and 1 disagree, 1 and 2 agree, 2 and 0
+    # agree): one pair is left disagreeing, and reported, not hidden.
+    b, c = [[7.0, 0.0, 0.0]], [[8.0, 0.0, 0.0]]
+    tiles = [
+        _seam(shared + c, up + [[1.0, 0.0, 0.0]], far),
+        _seam(shared + b, down + [[1.0, 0.0, 0.0]], near),
+        _seam(b + c, [[1.0, 0.0, 0.0]] * 2, near),
+    ]
+    _, disagreement, groups = _agree(tiles)
+    assert disagreement == pytest.approx(1 / 5) and groups == 1
+
+
+def test_cli_tiles_from_a_file_on_a_scheduler(client, tmp_path, capsys):
+    path = io.write_points(tmp_path / "torus.ply", sample_torus(30_000, noise=0.005, rng=5).points)
+    out, report = tmp_path / "mesh.ply", tmp_path / "r.json"
+    address = client.scheduler.address
+    args = [str(path), "-o", str(out), "--tiles", "2x2x1", "--scheduler", address]
+    assert main(["reconstruct", *args, "--report", str(report)]) == 0
+    mesh = io.read_mesh(out)
+    assert topology.boundary_loops(mesh.faces) == [] and topology.euler_characteristic(mesh) == 0
+    stats = json.loads(report.read_text())["stats"]
+    assert stats["tile_grid"] == [2, 2, 1] and len(stats["worker_peak_mib"]) >= 1
+    assert "tiles       4 (2x2x1)" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize(
+    "extra, message",
+    [
+        (["--tiles", "2x2"], "NxMxK"),
+        (["--tiles", "auto", "--report", "r.html"], "write the report as .json"),
+        (["--tiles", "auto", "--optimize"], "--tiles takes one input"),
+        (["--workers", "2"], "go with --tiles"),
+    ],
+)
+def test_tile_options_are_checked(tmp_path, capsys, extra, message):
+    path = io.write_points(tmp_path / "s.ply", sample_torus(2_000, rng=1).points)
+    extra = [str(tmp_path / e) if e.endswith(".html") else e for e in extra]
+    assert main(["reconstruct", str(path), "-o", str(tmp_path / "m.ply"), *extra]) == 2
+    assert message in capsys.readouterr().err
