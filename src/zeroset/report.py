@@ -171,7 +171,8 @@ def format_report(report: dict) -> str:
         f"points      {stats['input_points']:,} in"
         + "".join(f"; {item}" for item in removed)
         + (f"; averaged into {cells:,} cells" if report["parameters"]["averaging_cell"] else "")
-        + f"; {stats['outliers']:,} outliers dropped; {stats['phase1_points']:,} fit planes",
+        + f"; {stats['outliers']:,} outliers dropped; {stats['phase1_points']:,} fit planes"
+        + (" (summed over the tiles, halos included)" if "tile_grid" in stats else ""),
         *_registration_lines(report.get("registration")),
         *(f"parameter   {note}" for note in report["parameters"]["notes"]),
         *_density_lines(stats),
