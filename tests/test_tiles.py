@@ -17,7 +17,7 @@ def client():
     """A local cluster of two worker processes, one thread each."""
     with (
         distributed.LocalCluster(
-            n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
+            n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0"
         ) as cluster,
         distributed.Client(cluster) as client,
     ):
@@ -136,10 +136,15 @@ def test_cli_tiles_from_a_file_on_a_scheduler(client, tmp_path, capsys):
         (["--tiles", "auto", "--report", "r.html"], "write the report as .json"),
         (["--tiles", "auto", "--optimize"], "--tiles takes one input"),
         (["--workers", "2"], "go with --tiles"),
+        (["--tiles", "auto", "missing.ply"], "missing.ply: no such file"),
     ],
 )
-def test_tile_options_are_checked(tmp_path, capsys, extra, message):
+def test_tile_options_are_checked_before_any_cluster_starts(tmp_path, capsys, extra, message):
     path = io.write_points(tmp_path / "s.ply", sample_torus(2_000, rng=1).points)
+    if extra[-1] == "missing.ply":
+        path, extra = tmp_path / extra[-1], extra[:-1]
     extra = [str(tmp_path / e) if e.endswith(".html") else e for e in extra]
     assert main(["reconstruct", str(path), "-o", str(tmp_path / "m.ply"), *extra]) == 2
-    assert message in capsys.readouterr().err
+    error = capsys.readouterr().err
+    assert error.startswith("zeroset: error: ") and message in error
+    assert error.count("\n") == 1  # one line: no cluster was started to fail in a task

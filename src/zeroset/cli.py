@@ -375,8 +375,11 @@ def _run_reconstruct(args: argparse.Namespace) -> int:
 
 def _run_tiled(args: argparse.Namespace, config) -> int:
     """`reconstruct --tiles`: the tiles run on a Dask cluster, local unless --scheduler."""
+    import logging
+
+    from . import io
     from .errors import InputError
-    from .tiles import reconstruct_tiled
+    from .tiles import parse_tiles, reconstruct_tiled
 
     if len(args.input) > 1 or args.poses or args.register or args.optimize:
         raise InputError("--tiles takes one input, without --poses, --register or --optimize")
@@ -385,35 +388,33 @@ def _run_tiled(args: argparse.Namespace, config) -> int:
             f"{args.report}: with --tiles the points and planes stay on the workers; "
             "write the report as .json"
         )
-    tiles = args.tiles
-    if tiles != "auto":
-        try:
-            tiles = [int(count) for count in tiles.lower().split("x")]
-        except ValueError:
-            tiles = None
-        if tiles is None or len(tiles) != 3 or min(tiles) < 1:
-            raise InputError(
-                f"--tiles must be auto or NxMxK with positive N, M, K; got {args.tiles}"
-            )
     if args.workers is not None and (args.workers < 1 or args.scheduler is not None):
         raise InputError("--workers must be a positive count, for the local cluster only")
+    source = io.check_input(args.input[0]).resolve()
+    parse_tiles(args.tiles)
     try:
         from distributed import Client, LocalCluster
     except ImportError as error:
-        raise InputError(
-            "--tiles runs on dask.distributed, which is not installed: "
-            "pip install 'zeroset[tiles]'"
-        ) from error
+        message = "--tiles runs on dask.distributed: pip install 'zeroset[tiles]'"
+        raise InputError(message) from error
     if args.scheduler is not None:
         client, cluster = Client(args.scheduler), None
     else:
         cluster = LocalCluster(
-            n_workers=args.workers, threads_per_worker=1, processes=True, dashboard_address=None
+            n_workers=args.workers,
+            threads_per_worker=1,
+            processes=True,
+            dashboard_address=":0",
+            silence_logs=logging.CRITICAL,
         )
         client = Client(cluster)
     try:
         result = reconstruct_tiled(
-            args.input[0].resolve(), config, tiles=tiles, client=client, progress=not args.quiet
+            source,
+            config,
+            tiles=args.tiles,
+            client=client,
+            progress=not args.quiet,
         )
     finally:
         client.close()

@@ -10,6 +10,7 @@ values, so the welded mesh has no seam.
 
 from __future__ import annotations
 
+import logging
 import math
 import resource
 import time
@@ -27,7 +28,7 @@ from .neighbours import spatial_order
 from .pipeline import choose_parameters, distance_field, fit_planes, mesh_stats, repair
 from .types import Mesh, Parameters
 
-__all__ = ["TiledReconstruction", "plan_tiles", "reconstruct_tiled"]
+__all__ = ["TiledReconstruction", "parse_tiles", "plan_tiles", "reconstruct_tiled"]
 
 #: Halo around a tile's box: neighbourhoods, radii, bridges and the nearest planes of its
 #: border cubes all lie within this many rho_delta (and HALO_CUBES cubes) of the box.
@@ -140,7 +141,7 @@ def reconstruct_tiled(
     config : ReconstructionConfig, optional
         As for `zeroset.reconstruct`; ``sample`` and ``voxel_size`` are not supported here,
         and only marching cubes contours tiles.
-    tiles : "auto" or (3,) ints
+    tiles : "auto", "NxMxK" or (3,) ints
         Tiles per axis; "auto" aims at ``AUTO_TILE_POINTS`` per tile, cutting the longest
         axes first.
     client : distributed.Client, optional
@@ -163,7 +164,12 @@ def reconstruct_tiled(
     if client is None:
         from distributed import Client, LocalCluster
 
-        with LocalCluster(processes=True, threads_per_worker=1, dashboard_address=None) as cluster:
+        with LocalCluster(
+            processes=True,
+            threads_per_worker=1,
+            dashboard_address=":0",
+            silence_logs=logging.CRITICAL,
+        ) as cluster:
             with Client(cluster) as local:
                 return reconstruct_tiled(
                     source,
@@ -237,15 +243,27 @@ def reconstruct_tiled(
     )
 
 
+def parse_tiles(tiles) -> str | np.ndarray:
+    """``"auto"``, or the tiles per axis (3,) int64 of ``"NxMxK"`` or three counts."""
+    if isinstance(tiles, str) and tiles == "auto":
+        return tiles
+    if isinstance(tiles, str):
+        tiles = tiles.lower().split("x")
+    try:
+        counts = np.array([int(count) for count in tiles], dtype=np.int64)
+    except (TypeError, ValueError):
+        counts = np.zeros(0, dtype=np.int64)
+    if counts.shape != (3,) or (counts < 1).any():
+        raise InputError(f"tiles must be auto or three positive counts NxMxK; got {tiles!r}")
+    return counts
+
+
 def _counts(tiles, low, high, n_points) -> np.ndarray:
-    """Tiles per axis (3,): as given, or enough for AUTO_TILE_POINTS each, longest axes cut."""
+    """Tiles per axis (3,): as given, or for "auto" enough for AUTO_TILE_POINTS each, the
+    longest axes cut first."""
+    tiles = parse_tiles(tiles)
     if not isinstance(tiles, str):
-        counts = np.asarray(tiles, dtype=np.int64).reshape(-1)
-        if counts.shape != (3,) or (counts < 1).any():
-            raise InputError(f"tiles must be three positive counts NxMxK; got {tiles!r}")
-        return counts
-    if tiles != "auto":
-        raise InputError(f"tiles must be 'auto' or NxMxK; got {tiles!r}")
+        return tiles
     wanted = max(1, math.ceil(n_points / AUTO_TILE_POINTS))
     counts = np.ones(3, dtype=np.int64)
     extent = np.maximum(np.asarray(high) - np.asarray(low), 1e-300)

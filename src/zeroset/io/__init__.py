@@ -28,6 +28,7 @@ __all__ = [
     "POINT_FORMATS",
     "POSE_FORMATS",
     "atomic_target",
+    "check_input",
     "check_output",
     "point_bounds",
     "read_mesh",
@@ -428,6 +429,18 @@ def _existing(path: str | os.PathLike, table: dict, kind: str):
     if not target.is_file():  # a FIFO would hang, a device would be read forever
         raise InputError(f"{os.fspath(path)}: is not a regular file")
     return target, function
+
+
+def check_input(path: str | os.PathLike) -> Path:
+    """Check that `path` is an existing point file of a known format, before any work.
+
+    Raises
+    ------
+    InputError
+        If its suffix is not in `POINT_FORMATS`, or it is missing, a folder or not a
+        regular file. The message starts with `path`.
+    """
+    return _existing(path, _POINT_READERS, "point")[0]
 
 
 def check_output(path: str | os.PathLike, *, mesh: bool = False) -> Path:
