@@ -148,3 +148,16 @@ def test_tile_options_are_checked_before_any_cluster_starts(tmp_path, capsys, ex
     error = capsys.readouterr().err
     assert error.startswith("zeroset: error: ") and message in error
     assert error.count("\n") == 1  # one line: no cluster was started to fail in a task
+
+
+def test_tiles_read_from_a_file_with_a_crop_give_the_untiled_mesh(client, tmp_path):
+    # Each tile reads its own box of the file, cut by the crop.
+    points = sample_torus(30_000, noise=0.005, rng=6).points
+    path = io.write_points(tmp_path / "torus.ply", points)
+    box = (-1.5, -1.5, -1.0, 0.4, 1.5, 1.0)
+    untiled = reconstruct(points, crop=box)
+    tiled = reconstruct_tiled(
+        path, tiles=(4, 2, 1), client=client, parameters=untiled.parameters, crop=box
+    )
+    _same_mesh(tiled.mesh, untiled.mesh)
+    assert tiled.stats["input_points"] == untiled.stats["input_points"] - untiled.stats["cropped"]

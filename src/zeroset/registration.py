@@ -17,6 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ._kernels.normals import centroid_covariance
 from ._progress import Stages
 from ._rigid import transform
 from ._validate import as_points, as_poses, positive
@@ -435,12 +436,10 @@ def _fit_quality(scans, trees, fit, bound: float) -> tuple[np.ndarray, np.ndarra
 
 def _tangent_planes(points, tree, rows) -> tuple[np.ndarray, np.ndarray]:
     """Centroid (M, 3) and unit normal (M, 3) of the NORMAL_K nearest points of each row."""
-    k = min(NORMAL_K, points.shape[0])
-    _, neighbours = tree.query(points[rows], k=k)
-    patches = points[neighbours]
-    centroid = patches.mean(axis=1)
-    centred = patches - centroid[:, None, :]
-    covariance = np.einsum("mki,mkj->mij", centred, centred)
+    distances, neighbours = tree.query(points[rows], k=min(NORMAL_K, points.shape[0]))
+    centroid, covariance, _ = centroid_covariance(
+        points, neighbours.astype(np.int64), distances, np.full(len(rows), np.inf)
+    )
     return centroid, np.linalg.eigh(covariance)[1][:, :, 0]
 
 

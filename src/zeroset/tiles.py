@@ -26,6 +26,7 @@ from .contour import keyed_marching_cubes
 from .errors import InputError, ReconstructionError
 from .neighbours import spatial_order
 from .pipeline import choose_parameters, distance_field, fit_planes, mesh_stats, repair
+from .prepare import crop as inside
 from .types import Mesh, Parameters
 
 __all__ = ["TiledReconstruction", "parse_tiles", "plan_tiles", "reconstruct_tiled"]
@@ -280,32 +281,24 @@ def _read(source, box, crop=None) -> tuple[np.ndarray, np.ndarray | None]:
         if np.any(box[:3] > box[3:]):
             return np.zeros((0, 3)), None
     if isinstance(source, np.ndarray):
-        inside = np.all((source >= box[:3]) & (source <= box[3:]), axis=1)
-        return source[inside], None
+        return source[inside(source, box[:3], box[3:])], None
     from . import io
 
-    try:
-        cloud = io.read_points(source, crop=box)
-    except InputError as error:
-        if "no points left" in str(error):
-            return np.zeros((0, 3)), None
-        raise
+    cloud = io.read_points(source, crop=box, allow_empty=True)
     return cloud.points, cloud.viewpoints
 
 
 def _bounds(source, crop) -> tuple[np.ndarray, np.ndarray, int]:
     """Bounding box (3,), (3,) and count of the points (inside `crop`), read in chunks."""
-    if crop is not None:
-        crop = np.asarray(crop, dtype=np.float64)
-        points, _ = _read(source, crop)
+    crop = None if crop is None else np.asarray(crop, dtype=np.float64)
+    if isinstance(source, np.ndarray):
+        points = source if crop is None else source[inside(source, crop[:3], crop[3:])]
         if len(points) == 0:
             raise InputError("no points inside --crop")
         return points.min(axis=0), points.max(axis=0), len(points)
-    if isinstance(source, np.ndarray):
-        return source.min(axis=0), source.max(axis=0), len(source)
     from . import io
 
-    return io.point_bounds(source)
+    return io.point_bounds(source, crop=crop)
 
 
 def _estimate(client, source, config, low, high, offset, counts, progress) -> Parameters:

@@ -19,6 +19,7 @@ import numpy as np
 from .._validate import as_faces, as_points, as_poses
 from ..errors import InputError
 from ..prepare import CHUNK_POINTS, reduce_chunks
+from ..prepare import crop as inside
 from ..types import Mesh, PointCloud
 from . import _e57, _las, _mesh, _numpy, _pcd, _ply, _poses, _text
 from ._atomic import atomic_target
@@ -91,6 +92,7 @@ def read_points(
     voxel_size: float | None = None,
     seed: int | None = 0,
     chunk_points: int = CHUNK_POINTS,
+    allow_empty: bool = False,
 ) -> PointCloud:
     """Read a point cloud with the normals, sensor positions and intensity the file has.
 
@@ -129,6 +131,9 @@ def read_points(
         Seed of `sample`.
     chunk_points : int
         Points per chunk when a LAS or LAZ file is reduced while read.
+    allow_empty : bool
+        Return an empty cloud, not an error, when the reduction keeps no point (a tile of
+        a larger cloud may hold none).
 
     Returns
     -------
@@ -173,7 +178,7 @@ def read_points(
                 columns, counts = reduction.columns, reduction.counts
         if reduce and counts["input_points"] == 0:
             raise InputError("contains no points")
-        if len(columns["points"]) == 0:
+        if len(columns["points"]) == 0 and not allow_empty:
             left = f"no points left of {counts['input_points']} after cropping and sampling"
             raise InputError(left)
     return PointCloud(
@@ -187,17 +192,18 @@ def read_points(
 
 
 def point_bounds(
-    path: str | os.PathLike, *, chunk_points: int = CHUNK_POINTS
+    path: str | os.PathLike, *, crop=None, chunk_points: int = CHUNK_POINTS
 ) -> tuple[np.ndarray, np.ndarray, int]:
     """Bounding box ``(low (3,), high (3,))`` and number of the points of a file.
 
     LAS, LAZ and binary PLY files are read `chunk_points` at a time, so only a chunk is in
-    memory at once; other formats are read whole.
+    memory at once; other formats are read whole. With `crop` (6,), only the points inside
+    that box count.
 
     Raises
     ------
     InputError
-        As `read_points`.
+        As `read_points`, and when no point lies inside `crop`.
     """
     target, reader = _existing(path, _POINT_READERS, "point")
     chunks = _POINT_CHUNKS.get(target.suffix.lower())
@@ -206,6 +212,8 @@ def point_bounds(
         parts = chunks(target, int(chunk_points)) if chunks else [reader(target)]
         for part in parts:
             points = _columns(part)["points"] if len(part["points"]) else np.zeros((0, 3))
+            if crop is not None:
+                points = points[inside(points, crop[:3], crop[3:])]
             if len(points):
                 low, high = (
                     np.minimum(low, points.min(axis=0)),
@@ -213,7 +221,7 @@ def point_bounds(
                 )
                 count += len(points)
         if count == 0:
-            raise InputError("contains no points")
+            raise InputError("contains no points" + ("" if crop is None else " inside --crop"))
     return low, high, count
 
 

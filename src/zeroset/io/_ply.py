@@ -7,6 +7,7 @@ import re
 import warnings
 from collections.abc import Iterator
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 import plyfile
@@ -70,8 +71,9 @@ def iter_chunks(path: Path, chunk_points: int | None) -> Iterator[dict[str, np.n
     the current chunk are ever in memory; other files are parsed whole by plyfile first.
     """
     check_content(path, (".ply",), "PLY file")
-    _check_length(path)
-    table, lists = _ascii_vertices(path), set()
+    header = _header(path)
+    _check_length(path, header)
+    table, lists = _ascii_vertices(path, header), set()
     if table is None:
         table, lists = _plyfile_vertices(path)
     groups = {
@@ -108,7 +110,65 @@ def _plyfile_vertices(path: Path) -> tuple[np.ndarray, set[str]]:
     return vertex.data, lists
 
 
-def _ascii_vertices(path: Path) -> np.ndarray | None:
+class _Element(NamedTuple):
+    """An element of a PLY header: its rows (None where the count is not a number) and its
+    properties as (name, type, is a list, line well formed)."""
+
+    name: str
+    count: int | None
+    properties: list[tuple[str, str, bool, bool]]
+
+
+class _Header(NamedTuple):
+    """A PLY header as far as the readers need it: its format, its length in lines and
+    bytes, and its elements."""
+
+    binary: bool
+    lines: int
+    size: int
+    elements: list[_Element]
+
+
+def _header(path: Path) -> _Header | None:
+    """Parse the header of a PLY file; None when a short file has no ``end_header`` (plyfile
+    then says what is wrong).
+
+    Raises
+    ------
+    InputError
+        If the first ``_HEADER_LIMIT`` bytes hold no ``end_header``, or an element has a
+        negative count.
+    """
+    with open(path, "rb") as stream:
+        head = stream.read(_HEADER_LIMIT)
+    end = _END_HEADER.search(head)
+    if end is None:
+        if len(head) == _HEADER_LIMIT:
+            raise InputError(
+                f"not a valid PLY file (no 'end_header' in its first {len(head)} bytes)"
+            )
+        return None
+    lines = [
+        line.decode("ascii", "replace").split() for line in _NEWLINE.split(head[: end.start()])
+    ]
+    binary = any(words[:1] == ["format"] and words[1:2] != ["ascii"] for words in lines)
+    elements: list[_Element] = []
+    for words in lines:
+        if words[:1] == ["element"] and len(words) == 3:
+            count = int(words[2]) if words[2].lstrip("-").isdigit() else None
+            if count is not None and count < 0:
+                raise InputError(f"not a valid PLY file (element {words[1]!r} has {count} rows)")
+            elements.append(_Element(words[1], count, []))
+        elif words[:1] == ["property"] and len(words) >= 3 and elements:
+            is_list = words[1] == "list"
+            kind = words[2] if is_list else words[1]
+            well_formed = len(words) == (5 if is_list else 3) and kind in _TYPE_BYTES
+            elements[-1].properties.append((words[-1], kind, is_list, well_formed))
+    n_lines = len(_NEWLINE.findall(head[: end.end()]))
+    return _Header(binary, n_lines, end.end(), elements)
+
+
+def _ascii_vertices(path: Path, header: _Header | None) -> np.ndarray | None:
     """The ``vertex`` rows of an ASCII PLY file parsed by NumPy, a structured float64 array.
 
     plyfile parses ASCII rows one at a time (4 s for a 40,000-point Stanford range image,
@@ -116,41 +176,35 @@ def _ascii_vertices(path: Path) -> np.ndarray | None:
     a hundred times faster. None, leaving the file to plyfile, when it is binary, its
     vertex element has list properties, or a row does not hold one number per property.
     """
-    with open(path, "rb") as stream:
-        head = stream.read(_HEADER_LIMIT)
-    end = _END_HEADER.search(head)
-    if end is None:
+    if header is None or header.binary:
         return None
-    lines = [
-        line.decode("ascii", "replace").split() for line in _NEWLINE.split(head[: end.start()])
-    ]
-    if ["format", "ascii"] not in [words[:2] for words in lines]:
+    skip = header.lines
+    for element in header.elements:
+        if element.count is None:
+            return None
+        if element.name == "vertex":
+            break
+        skip += element.count  # an ASCII row is one line
+    else:
         return None
-    skip, count, names, element = len(_NEWLINE.findall(head[: end.end()])), None, [], None
-    for words in lines:
-        if words[:1] == ["element"] and len(words) == 3 and words[2].isdigit():
-            if element == "vertex":
-                break
-            element = words[1]
-            if element == "vertex":
-                count = int(words[2])
-            else:
-                skip += int(words[2])  # an ASCII row is one line
-        elif words[:1] == ["property"] and element == "vertex":
-            if len(words) != 3 or words[1] not in _TYPE_BYTES:  # lists; errors for plyfile
-                return None
-            names.append(words[2])
-    if count is None or not names or len(set(names)) != len(names):
-        return None
+    names = [name for name, _, is_list, well_formed in element.properties if well_formed]
+    scalar = all(well_formed and not is_list for _, _, is_list, well_formed in element.properties)
+    if not (scalar and names) or len(set(names)) != len(names):
+        return None  # lists, or errors for plyfile to report
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", UserWarning)  # no rows: plyfile says what is wrong
             table = np.loadtxt(
-                path, skiprows=skip, max_rows=count, ndmin=2, comments=None, encoding="latin-1"
+                path,
+                skiprows=skip,
+                max_rows=element.count,
+                ndmin=2,
+                comments=None,
+                encoding="latin-1",
             )
     except ValueError:
         return None
-    if table.shape != (count, len(names)):
+    if table.shape != (element.count, len(names)):
         return None
     return unstructured_to_structured(table, names=names)
 
@@ -166,55 +220,30 @@ def _group(table: np.ndarray, lists: set[str], groups) -> tuple[str, ...] | None
     return names
 
 
-def _check_length(path: Path) -> None:
+def _check_length(path: Path, header: _Header | None) -> None:
     """Refuse a file shorter than the fewest bytes the rows its header declares can take.
 
-    This runs before plyfile allocates the rows. A header that cannot be parsed is left
-    for plyfile to report.
+    This runs before plyfile allocates the rows. A binary row takes at least the bytes of
+    its scalar properties and list lengths; an ASCII row, two bytes per property (one
+    character and a separator). Malformed lines count for nothing, and a header that
+    cannot be parsed is left for plyfile to report.
     """
-    with open(path, "rb") as stream:
-        head = stream.read(_HEADER_LIMIT)
-    end = _END_HEADER.search(head)
-    if end is None:
-        if len(head) == _HEADER_LIMIT:
-            raise InputError(
-                f"not a valid PLY file (no 'end_header' in its first {len(head)} bytes)"
-            )
+    if header is None:
         return
-    binary, elements = _declared(head[: end.start()])
     # The last value of an ASCII file may lack its newline.
-    available = path.stat().st_size - end.end() + (0 if binary else 1)
+    available = path.stat().st_size - header.size + (0 if header.binary else 1)
     needed = 0
-    for name, count, row_bytes in elements:
-        needed += count * row_bytes
+    for element in header.elements:
+        row_bytes = sum(
+            _TYPE_BYTES.get(kind, 1) if header.binary else 2 for _, kind, _, _ in element.properties
+        )
+        needed += (element.count or 0) * row_bytes
         if needed > available:
             raise InputError(
-                f"header declares {count} {name} rows, at least {needed} bytes, but only "
-                f"{available} bytes follow it; the file is truncated or the header is wrong"
+                f"header declares {element.count} {element.name} rows, at least {needed} "
+                f"bytes, but only {available} bytes follow it; the file is truncated or the "
+                "header is wrong"
             )
-
-
-def _declared(header: bytes) -> tuple[bool, list[tuple[str, int, int]]]:
-    """Whether a PLY header is binary, and its elements: name, rows, fewest bytes per row.
-
-    A binary row takes at least the bytes of its scalar properties and list lengths; an
-    ASCII row, two bytes per property (one character and a separator). Malformed lines
-    count for nothing.
-    """
-    lines = [line.decode("ascii", "replace").split() for line in _NEWLINE.split(header)]
-    binary = any(words[:1] == ["format"] and words[1:2] != ["ascii"] for words in lines)
-    elements = []
-    for words in lines:
-        if words[:1] == ["element"] and len(words) == 3:
-            count = int(words[2]) if words[2].lstrip("-").isdigit() else 0
-            if count < 0:
-                raise InputError(f"not a valid PLY file (element {words[1]!r} has {count} rows)")
-            elements.append((words[1], count, 0))
-        elif words[:1] == ["property"] and len(words) >= 3 and elements:
-            kind = words[2] if words[1] == "list" else words[1]
-            name, count, row_bytes = elements[-1]
-            elements[-1] = (name, count, row_bytes + (_TYPE_BYTES.get(kind, 1) if binary else 2))
-    return binary, elements
 
 
 def write_points(
