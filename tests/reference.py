@@ -69,3 +69,77 @@ def sector_nearest(points, indices, distances, u, v, sectors):
         if column[i, s] < 0:
             nearest[i, s], column[i, s] = distances[i, c + 1], c + 1
     return nearest, column
+
+
+def _quartic(x, u, v):
+    k1, k2, cs, sn = x[6:10]
+    s, t = cs * u + sn * v, -sn * u + cs * v
+    cross = k1 * k2 * (k1 + k2)
+    q = (k1**3 * s**4 + k2**3 * t**4 + cross * s**2 * t**2) / 8.0
+    qs = (4 * k1**3 * s**3 + 2 * cross * s * t**2) / 8.0
+    qt = (4 * k2**3 * t**3 + 2 * cross * s**2 * t) / 8.0
+    return q, qs * cs - qt * sn, qs * sn + qt * cs
+
+
+def fit_jet_rows(points, weights, spreads, indices, distances, radius, min_count):
+    """Jets by weighted least squares, one row at a time (see zeroset._kernels.jets)."""
+    n, k = indices.shape
+    out = [np.zeros((n, 3)), np.zeros((n, 3, 3)), np.zeros((n, 10)), np.zeros(n), np.zeros(n),
+           np.zeros(n)]
+    for i in range(n):
+        r = max(radius[i], distances[i, min(min_count, k) - 1] * (1 + 1e-9))
+        inside = distances[i] / r < 1.0
+        j = indices[i][inside]
+        kern = (1 - (distances[i][inside] / r) ** 2) ** 2
+        w = weights[j] * kern
+        c = (w[:, None] * points[j]).sum(0) / w.sum()
+        d = points[j] - c
+        cov = np.einsum("m,mi,mj->ij", w, d, d) + np.einsum("m,mij->ij", w, spreads[j])
+        frame = np.linalg.eigh(cov)[1][:, ::-1].T
+        u, v, h = (d @ frame.T).T
+        s_uv = np.einsum("ai,mij,bj->mab", frame[:2], spreads[j], frame[:2])
+        x = np.zeros(10)
+        for rnd in range(2):
+            y = h - _quartic(x, u, v)[0]
+            design = np.stack([np.ones_like(u), u / r, v / r, (u * u + s_uv[:, 0, 0]) / r**2,
+                               (u * v + s_uv[:, 0, 1]) / r**2, (v * v + s_uv[:, 1, 1]) / r**2], 1)
+            normal = design.T @ (w[:, None] * design)
+            normal += 1e-9 * np.trace(normal[:4, :4]) * np.eye(6)
+            a = np.linalg.solve(normal, design.T @ (w * y))
+            x[:6] = a / np.array([1, r, r, r * r, r * r, r * r])
+            if rnd == 0:
+                a3, a4, a5 = x[3:6]
+                spread = np.hypot(a3 - a5, a4)
+                angle = 0.5 * np.arctan2(a4, a3 - a5)
+                x[6:10] = a3 + a5 + spread, a3 + a5 - spread, np.cos(angle), np.sin(angle)
+        height = x[0] + x[1] * u + x[2] * v + x[3] * u * u + x[4] * u * v + x[5] * v * v
+        residual = h - height - _quartic(x, u, v)[0]
+        for array, value in zip(out, (c, frame, x, r, weights[j].sum(),
+                                      (w * residual**2).sum() / kern.sum()), strict=True):
+            array[i] = value
+    return tuple(out)
+
+
+def blend_jet_rows(positions, indices, distances, centres, frames, coefficients):
+    """Blended jet distance and gradient, one position at a time."""
+    m, k = indices.shape
+    values, gradients = np.zeros(m), np.zeros((m, 3))
+    for i in range(m):
+        reach = distances[i, -1]
+        weight = np.clip(1 - (distances[i, :-1] / reach) ** 2, 0, None) ** 2
+        if weight[0] == 0:
+            weight[0] = 1.0
+        f, g = 0.0, np.zeros(3)
+        for s in np.flatnonzero(weight):
+            j = indices[i, s]
+            u, v, h = frames[j] @ (positions[i] - centres[j])
+            x = coefficients[j]
+            q, qu, qv = _quartic(x, u, v)
+            hu = x[1] + 2 * x[3] * u + x[4] * v + qu
+            hv = x[2] + x[4] * u + 2 * x[5] * v + qv
+            height = x[0] + x[1] * u + x[2] * v + x[3] * u * u + x[4] * u * v + x[5] * v * v + q
+            scale = 1 / np.sqrt(1 + hu * hu + hv * hv)
+            f += weight[s] * (h - height) * scale
+            g += weight[s] * (frames[j, 2] - hu * frames[j, 0] - hv * frames[j, 1]) * scale
+        values[i], gradients[i] = f / weight.sum(), g / weight.sum()
+    return values, gradients

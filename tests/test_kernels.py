@@ -2,10 +2,12 @@
 
 import numpy as np
 import pytest
+from scipy.spatial import cKDTree
 
 from tests import reference
 from zeroset._kernels import density as density_kernels
 from zeroset._kernels import evaluate as evaluate_kernels
+from zeroset._kernels import jets as jet_kernels
 from zeroset._kernels import normals as normals_kernels
 from zeroset._kernels import optimize as optimize_kernels
 from zeroset._kernels import orientation as orientation_kernels
@@ -60,7 +62,33 @@ def _sector_inputs(rng):
     return points, indices, distances, u, v, 8
 
 
+def _surface_patch(rng, n=400):
+    """Noisy samples of a curved patch, random weights and spreads, and 24 neighbours each."""
+    uv = rng.uniform(-1, 1, size=(n, 2))
+    points = np.column_stack([uv, 0.3 * uv[:, 0] ** 2 - 0.2 * uv[:, 1] ** 2 + 0.1 * uv[:, 0]])
+    points += 0.01 * rng.normal(size=points.shape)
+    weights = rng.integers(1, 5, n).astype(float)
+    root = 0.01 * rng.normal(size=(n, 3, 3))
+    spreads = root @ root.transpose(0, 2, 1)
+    nb = knn(points, 24)
+    return points, weights, spreads, nb.indices, nb.distances
+
+
+def _fit_inputs(rng):
+    points, weights, spreads, indices, distances = _surface_patch(rng)
+    radius = rng.uniform(0.1, 0.6, size=indices.shape[0])
+    return points, weights, spreads, indices, distances, radius, 8
+
+
+def _blend_inputs(rng):
+    jets = jet_kernels.fit_rows(*_fit_inputs(rng))
+    positions = rng.uniform(-1, 1, size=(200, 3)) * [1, 1, 0.2]
+    distances, indices = cKDTree(jets[0]).query(positions, k=9)
+    return positions, indices, distances, jets[0], jets[1], jets[2]
+
+
 COMPARISONS = [
+    (jet_kernels.blend_rows, reference.blend_jet_rows, _blend_inputs),
     (density_kernels.sector_nearest, reference.sector_nearest, _sector_inputs),
     (normals_kernels.centroid_covariance, reference.centroid_covariance, _neighbourhood_inputs),
     (orientation_kernels.propagate_signs, reference.propagate_signs, _tree_inputs),
@@ -85,6 +113,20 @@ def test_kernel_matches_reference(kernel, ref, build, seed):
         strict=True,
     ):
         np.testing.assert_allclose(g, e, rtol=1e-10, atol=1e-12)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_jet_fit_matches_reference(seed):
+    inputs = _fit_inputs(np.random.default_rng(seed))
+    got, expected = jet_kernels.fit_rows(*inputs), reference.fit_jet_rows(*inputs)
+    for g, e in zip(got[:1] + got[3:], expected[:1] + expected[3:], strict=True):
+        np.testing.assert_allclose(g, e, rtol=1e-8, atol=1e-12)
+    # Frames are eigenvectors, each row up to its sign; the coefficients follow the signs.
+    signs = np.sign(np.einsum("nij,nij->ni", got[1], expected[1]))
+    np.testing.assert_allclose(got[1] * signs[..., None], expected[1], atol=1e-8)
+    s1, s2, sn = signs.T
+    flips = np.stack([sn, sn * s1, sn * s2, sn, sn * s1 * s2, sn, sn, sn], axis=1)
+    np.testing.assert_allclose(got[2][:, :8] * flips, expected[2][:, :8], rtol=1e-7, atol=1e-9)
 
 
 def test_component_extremes_finds_the_farthest_point_per_direction():

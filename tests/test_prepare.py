@@ -4,7 +4,7 @@ import pytest
 from zeroset import InputError
 from zeroset.neighbours import knn
 from zeroset.prepare import (
-    average_in_cells,
+    cell_means,
     crop,
     drop_outliers,
     random_sample,
@@ -102,23 +102,38 @@ def test_isolated_points_are_outliers(rng):
     assert keep[:-2].mean() > 0.95
 
 
-def test_average_in_cells_gives_one_mean_per_cell(rng):
+def test_cell_means_gives_one_mean_per_cell(rng):
     points = rng.uniform(0, 1, (5000, 3))
     labels = rng.normal(size=(5000, 3))
-    means, label_means = average_in_cells(points, 0.5, labels)
+    means, counts, spread, label_means = cell_means(points, 0.5, labels)
     assert means.shape == label_means.shape == (8, 3)
+    assert counts.sum() == 5000
     cells = np.floor(means / 0.5)
     assert np.unique(cells, axis=0).shape[0] == 8  # each mean stays in its own cell
     in_first = np.all(np.floor(points / 0.5) == cells[0], axis=1)
     np.testing.assert_allclose(means[0], points[in_first].mean(axis=0))
     np.testing.assert_allclose(label_means[0], labels[in_first].mean(axis=0))
+    assert counts[0] == np.count_nonzero(in_first)
+    np.testing.assert_allclose(spread[0], np.cov(points[in_first].T, bias=True), atol=1e-12)
+
+
+def test_cell_means_weighs_points(rng):
+    points = rng.uniform(0, 1, (2000, 3))
+    weights = rng.integers(1, 5, 2000).astype(float)
+    spreads = np.tile(np.eye(3) * 0.01, (2000, 1, 1))
+    # One cell holds every point.
+    means, totals, spread = cell_means(points, 2.0, weights=weights, spreads=spreads)
+    np.testing.assert_allclose(means[0], np.average(points, axis=0, weights=weights))
+    assert totals[0] == weights.sum()
+    expected = np.cov(points.T, aweights=weights, bias=True) + np.eye(3) * 0.01
+    np.testing.assert_allclose(spread[0], expected, atol=1e-12)
 
 
 @pytest.mark.parametrize("scale", [1.0, 1e17])  # 1e17: cells span more than 2**62 keys
-def test_average_in_cells_orders_cells_as_their_indices(rng, scale):
+def test_cell_means_orders_cells_as_their_indices(rng, scale):
     points = rng.normal(size=(3000, 3)) * scale
     size = 0.3 * scale
-    means, = average_in_cells(points, size)
+    means, *_ = cell_means(points, size)
     cells, label = np.unique(np.floor(points / size), axis=0, return_inverse=True)
     expected = np.stack([np.bincount(label.reshape(-1), weights=points[:, d]) for d in range(3)], 1)
     expected /= np.bincount(label.reshape(-1))[:, None]

@@ -4,10 +4,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field, fields, replace
 
-__all__ = ["CONTOURS", "ReconstructionConfig"]
+__all__ = ["CONTOURS", "SURFACES", "ReconstructionConfig"]
 
 #: The contouring methods of phase 1.
 CONTOURS = ("marching", "cubes")
+#: The surface functions of phase 1: blended jets, or Hoppe's nearest tangent plane.
+SURFACES = ("jets", "planes")
 
 
 def _opt(default, help: str, **extra):
@@ -53,6 +55,18 @@ class ReconstructionConfig:
         "contouring: marching (marching cubes) or cubes (Method of Cubes, one vertex per cube)",
         choices=CONTOURS,
     )
+    surface: str = _opt(
+        "jets",
+        "surface function: jets (blended quadric fits, unbiased on curved surfaces) or planes "
+        "(Hoppe's signed distance to the nearest tangent plane)",
+        choices=SURFACES,
+    )
+    fit_support: float | None = _opt(
+        None, "support radius of the jets in data units (default: bias-variance rule per region)"
+    )
+    refine_levels: int | None = _opt(
+        None, "four-way splits of the contoured triangles (default: from the curvature, jets only)"
+    )
     min_component_faces: int = _opt(20, "drop mesh components with fewer faces")
     max_hole_edges: int = _opt(6, "close boundary loops of at most this many edges (0: none)")
     c_rep: float | None = _opt(
@@ -66,6 +80,8 @@ class ReconstructionConfig:
     def __post_init__(self) -> None:
         if self.contour not in CONTOURS:
             raise ValueError(f"contour must be one of {CONTOURS}; got {self.contour!r}")
+        if self.surface not in SURFACES:
+            raise ValueError(f"surface must be one of {SURFACES}; got {self.surface!r}")
         if self.k_max <= self.min_neighbours or self.k_max < self.k_min:
             raise ValueError(
                 f"k_max must exceed min_neighbours and be at least k_min; got k_max={self.k_max}, "

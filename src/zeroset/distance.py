@@ -31,6 +31,7 @@ def signed_distance(
     origin=None,
     bridges=None,
     bridge_reach: float | None = None,
+    surface=None,
 ) -> DistanceField:
     """Evaluate the signed distance f on the grid vertices near the data.
 
@@ -62,6 +63,10 @@ def signed_distance(
     bridge_reach : float, optional
         A foot point within this distance of a bridge point is near the data; needed with
         `bridges`.
+    surface : callable, optional
+        ``surface(positions (M, 3)) -> (M,)`` signed distance: where it is given, the
+        planes only decide where f is defined and `surface` gives its values (the blended
+        jets of `zeroset.jets`).
 
     Returns
     -------
@@ -119,6 +124,9 @@ def signed_distance(
             )
         values[pending[found]] = f[found]
         pending = pending[~found]
+    if surface is not None:
+        defined = np.flatnonzero(np.isfinite(values))
+        values[defined] = surface(positions[defined])
     margin = ZERO_NUDGE * cube_size
     values = np.where(np.abs(values) < margin, np.where(values < 0.0, -margin, margin), values)
     return DistanceField(vertices_ijk=ijk, values=values, origin=origin, cube_size=cube_size)

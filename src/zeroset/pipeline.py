@@ -14,14 +14,16 @@ from .contour import marching_cubes, method_of_cubes
 from .density import BRIDGE_REACH, gap_bridges, point_radii, range_noise, sector_distances
 from .distance import signed_distance
 from .errors import InputError, ReconstructionError
+from .jets import evaluate_jets, fit_jets, orient_jets
 from .neighbours import knn, restrict, spatial_order
 from .normals import tangent_planes
 from .optimization import OptimizationResult, optimize_mesh
 from .orientation import orient_normals
 from .parameters import estimate_parameters
-from .prepare import average_in_cells, crop, drop_outliers, reduce_chunks
+from .prepare import cell_labels, crop, drop_outliers, group_means, reduce_chunks
+from .refine import refine_mesh
 from .repair import fill_small_holes, remove_small_components, split_nonmanifold_vertices
-from .types import DistanceField, Mesh, Orientation, Parameters, TangentPlanes
+from .types import DistanceField, Jets, Mesh, Orientation, Parameters, TangentPlanes
 
 __all__ = ["Reconstruction", "reconstruct"]
 
@@ -32,9 +34,13 @@ STAGES = (
     "outliers",
     "tangent planes",
     "orientation",
+    "local fits",
     "signed distance",
     "contour",
+    "refine",
 )
+#: Stages that run only for the blended-jets surface.
+JET_STAGES = ("local fits", "refine")
 OPTIMIZE_STAGE = "optimize"
 #: Nearest neighbours found per point: enough to reach across the gap between scan lines.
 WIDE_K = 32
@@ -63,6 +69,8 @@ class Reconstruction:
     parameters : Parameters
     planes : TangentPlanes
     orientation : Orientation
+    jets : Jets or None
+        The oriented local fits whose blend is the surface; None for ``surface="planes"``.
     field : DistanceField
     config : ReconstructionConfig
     initial_mesh : Mesh
@@ -81,6 +89,7 @@ class Reconstruction:
     parameters: Parameters
     planes: TangentPlanes
     orientation: Orientation
+    jets: Jets | None
     field: DistanceField
     config: ReconstructionConfig
     initial_mesh: Mesh
@@ -145,7 +154,8 @@ def reconstruct(
         if viewpoints.shape != points.shape:
             raise InputError(f"viewpoints must match points {points.shape}; got {viewpoints.shape}")
     stats: dict = {"input_points": points.shape[0]}
-    stages = Stages(STAGES + ((OPTIMIZE_STAGE,) if optimize else ()), show=progress)
+    names = tuple(s for s in STAGES if config.surface == "jets" or s not in JET_STAGES)
+    stages = Stages(names + ((OPTIMIZE_STAGE,) if optimize else ()), show=progress)
     try:
         with stages.stage("prepare"):
             rows = _prepare(points, config, stats)
@@ -160,8 +170,9 @@ def reconstruct(
         with stages.stage("parameters"):
             parameters = choose_parameters(local, config)
         fitted = fit_planes(local, viewpoints, parameters, config, stats, stages)
+        jets = oriented_jets(fitted, fitted.orientation.normals)
         field_ = distance_field(
-            local, fitted, fitted.orientation.normals, parameters, stats, stages
+            local, fitted, fitted.orientation.normals, parameters, stats, stages, jets=jets
         )
         with stages.stage("contour"):
             if config.contour == "cubes":
@@ -171,6 +182,12 @@ def reconstruct(
             else:
                 mesh = marching_cubes(field_)
             mesh = repair(mesh, parameters, config, stats)
+        if jets is not None:
+            with stages.stage("refine"):
+                mesh, counts = refine_mesh(
+                    mesh, jets, noise=parameters.noise, levels=config.refine_levels
+                )
+                stats.update(counts)
         initial_mesh = Mesh(vertices=mesh.vertices + offset, faces=mesh.faces)
         optimization = None
         if optimize:
@@ -201,6 +218,7 @@ def reconstruct(
         parameters=parameters,
         planes=fitted.planes,
         orientation=fitted.orientation,
+        jets=jets,
         field=field_,
         config=config,
         stats=stats,
@@ -239,6 +257,8 @@ class FittedPlanes:
         Nearest distance per direction (`zeroset.density.sector_distances`).
     planes : TangentPlanes
     orientation : Orientation
+    jets : Jets or None
+        The local fits, not yet oriented; None for ``surface="planes"``.
     """
 
     points: np.ndarray
@@ -246,15 +266,17 @@ class FittedPlanes:
     sectors: np.ndarray
     planes: TangentPlanes
     orientation: Orientation
+    jets: Jets | None = None
 
 
 def fit_planes(local, viewpoints, parameters, config, stats, stages) -> FittedPlanes:
-    """Stages "neighbours" to "orientation" on points in the local frame; counts to `stats`."""
+    """Stages "neighbours" to "local fits" on points in the local frame; counts to `stats`."""
     with stages.stage("neighbours"):
-        phase1 = local
+        phase1, cell = local, np.arange(local.shape[0])
         if parameters.averaging_cell > 0.0:
             per_point = () if viewpoints is None or viewpoints.ndim == 1 else (viewpoints,)
-            phase1, *averaged = average_in_cells(local, parameters.averaging_cell, *per_point)
+            cell = cell_labels(local, parameters.averaging_cell)
+            phase1, _, _, *averaged = group_means(local, cell, *per_point)
             viewpoints = averaged[0] if averaged else viewpoints
         neighbours = knn(phase1, max(config.k_max, WIDE_K))
         noise = parameters.noise
@@ -299,11 +321,42 @@ def fit_planes(local, viewpoints, parameters, config, stats, stages) -> FittedPl
         stats["orientation_components"] = orientation.n_components
         if orientation.disagreement is not None:
             stats["orientation_disagreement"] = orientation.disagreement
-    return FittedPlanes(phase1, radii, sectors, planes, orientation)
+    jets = None
+    if config.surface == "jets":
+        with stages.stage("local fits"):
+            jets = fit_jets(
+                *_plane_feet(local, cell, keep, planes),
+                noise=parameters.noise,
+                rho_delta=parameters.rho_delta,
+                support=config.fit_support,
+            )
+            stats["jets"] = jets.centres.shape[0]
+            stats["fit_support"] = jets.support
+    return FittedPlanes(phase1, radii, sectors, planes, orientation, jets)
 
 
-def distance_field(local, fitted, normals, parameters, stats, stages) -> DistanceField:
-    """Stage "signed distance": the field of the planes of `fitted` turned by `normals`."""
+def _plane_feet(local, cell, keep, planes) -> tuple[np.ndarray, np.ndarray]:
+    """The points (K, 3) of the cells kept and their feet (K, 3) on their cell's plane."""
+    rows = keep[cell]
+    owner = (np.cumsum(keep) - 1)[cell[rows]]
+    points = local[rows]
+    normals = planes.normals[owner]
+    height = np.einsum("ij,ij->i", points - planes.centroids[owner], normals)
+    return points, points - height[:, None] * normals
+
+
+def oriented_jets(fitted: FittedPlanes, normals: np.ndarray) -> Jets | None:
+    """The jets of `fitted`, each turned like the nearest of the planes turned by `normals`."""
+    if fitted.jets is None:
+        return None
+    return orient_jets(fitted.jets, fitted.planes.centroids, normals)
+
+
+def distance_field(
+    local, fitted, normals, parameters, stats, stages, *, jets: Jets | None = None
+) -> DistanceField:
+    """Stage "signed distance": the field of the planes of `fitted` turned by `normals`,
+    valued by the oriented `jets` where they are given."""
     with stages.stage("signed distance"):
         bridges = gap_bridges(fitted.points, fitted.sectors, rho_delta=parameters.rho_delta)
         stats["gap_bridge_points"] = bridges.shape[0]
@@ -315,6 +368,7 @@ def distance_field(local, fitted, normals, parameters, stats, stages) -> Distanc
             radius=fitted.radii,
             bridges=bridges,
             bridge_reach=BRIDGE_REACH * parameters.rho_delta,
+            surface=None if jets is None else (lambda x: evaluate_jets(jets, x)[0]),
         )
         stats["grid_vertices"] = int(field_.values.size)
         stats["undefined_grid_vertices"] = int(np.count_nonzero(np.isnan(field_.values)))

@@ -19,7 +19,9 @@ from .types import Neighbourhoods
 __all__ = [
     "CHUNK_POINTS",
     "Reduction",
-    "average_in_cells",
+    "cell_labels",
+    "cell_means",
+    "group_means",
     "crop",
     "drop_outliers",
     "random_sample",
@@ -293,39 +295,75 @@ class _VoxelChoice:
         return self.rows[order], {name: c[order] for name, c in self.columns.items()}
 
 
-def average_in_cells(
-    points: np.ndarray, cell_size: float, *others: np.ndarray
+def cell_means(
+    points: np.ndarray, cell_size: float, *others: np.ndarray, weights=None, spreads=None
 ) -> tuple[np.ndarray, ...]:
-    """Replace the points in each occupied cubic cell by their mean.
+    """Replace the points in each occupied cubic cell by their (weighted) mean.
 
     Averaging evens out the density (one point per cell, however many the scanner put
     there) and the noise (the mean of m points scatters sqrt(m) times less) before the
-    tangent planes are fitted.
+    tangent planes are fitted. `group_means` of `cell_labels`; see there for the rest.
+    """
+    return group_means(points, cell_labels(points, cell_size), *others, weights=weights,
+                       spreads=spreads)
+
+
+def cell_labels(points: np.ndarray, cell_size: float) -> np.ndarray:
+    """(N,) int64 cubic cell of every point, numbered 0, 1, ... in cell order.
+
+    Cells lie on the lattice ``cell_size * (i, j, k)``; `cell_size` is in data units.
+    """
+    cell_size = positive(cell_size, "cell_size")
+    cells = np.floor(points / cell_size).astype(np.int64)
+    return np.unique(_row_keys(cells), return_inverse=True)[1].reshape(-1)
+
+
+def group_means(
+    points: np.ndarray, labels: np.ndarray, *others: np.ndarray, weights=None, spreads=None
+) -> tuple[np.ndarray, ...]:
+    """Replace the points of each group by their (weighted) mean, keeping the group's spread.
+
+    On a curved surface the mean of a group lies off the surface by half the curvature
+    times the group's spread; a fit that knows the spread can take it out (`zeroset.jets`).
 
     Parameters
     ----------
     points : (N, 3) float64
-    cell_size : float
-        Cell edge length in data units; cells lie on the lattice ``cell_size * (i, j, k)``.
+    labels : (N,) int64
+        Group of every point; groups are numbered in the order of their labels.
     *others : (N, ...) float64
         Per-point arrays (e.g. viewpoints) to average the same way.
+    weights : (N,) float64, optional
+        Weight of every point (e.g. the points an earlier average stands for); 1 by default.
+    spreads : (N, 3, 3) float64, optional
+        Covariance of what each point stands for (an earlier group's spread); 0 by default.
 
     Returns
     -------
     tuple of arrays
-        The (M, 3) cell means of `points`, then those of each of `others`, in cell order.
+        The (M, 3) group means of `points`, the (M,) summed weights, the (M, 3, 3)
+        weighted covariance of each group (in squared data units), then the means of each
+        of `others`.
     """
-    cell_size = positive(cell_size, "cell_size")
-    cells = np.floor(points / cell_size).astype(np.int64)
-    _, label, counts = np.unique(_row_keys(cells), return_inverse=True, return_counts=True)
-    label = label.reshape(-1)
-    return tuple(
-        np.stack(
-            [np.bincount(label, weights=array[:, d]) / counts for d in range(array.shape[1])],
-            axis=1,
-        )
-        for array in (points, *others)
+    _, labels = np.unique(labels, return_inverse=True)
+    labels = labels.reshape(-1)
+    weights = np.ones(points.shape[0]) if weights is None else np.asarray(weights, np.float64)
+    total = np.bincount(labels, weights=weights)
+
+    def mean(values):
+        return np.bincount(labels, weights=values * weights) / total
+
+    means = np.stack([mean(points[:, d]) for d in range(3)], axis=1)
+    x = points - means[labels]
+    spread = np.empty((total.size, 3, 3))
+    for a in range(3):
+        for b in range(a, 3):
+            moment = x[:, a] * x[:, b] + (0.0 if spreads is None else spreads[:, a, b])
+            spread[:, a, b] = spread[:, b, a] = mean(moment)
+    averaged = (
+        np.stack([mean(array[:, d]) for d in range(array.shape[1])], axis=1) for array in others
     )
+    return (means, total, spread, *averaged)
 
 
 def _row_keys(cells: np.ndarray):

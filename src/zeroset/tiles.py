@@ -14,7 +14,7 @@ import logging
 import math
 import resource
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -24,10 +24,19 @@ from ._validate import as_points
 from .config import ReconstructionConfig
 from .contour import keyed_marching_cubes
 from .errors import InputError, ReconstructionError
+from .jets import REACH
 from .neighbours import spatial_order
-from .pipeline import choose_parameters, distance_field, fit_planes, mesh_stats, repair
+from .pipeline import (
+    choose_parameters,
+    distance_field,
+    fit_planes,
+    mesh_stats,
+    oriented_jets,
+    repair,
+)
 from .prepare import crop as inside
-from .types import Mesh, Parameters
+from .refine import refine_mesh
+from .types import Jets, Mesh, Parameters
 
 __all__ = ["TiledReconstruction", "parse_tiles", "plan_tiles", "reconstruct_tiled"]
 
@@ -94,16 +103,19 @@ class TiledReconstruction:
     timings: dict = field(default_factory=dict)
 
 
-def plan_tiles(low, high, offset, parameters: Parameters, counts) -> list[Tile]:
+def plan_tiles(
+    low, high, offset, parameters: Parameters, counts, *, halo_radii: float = HALO_RADII
+) -> list[Tile]:
     """Cut the lattice over the box ``[low, high]`` into ``counts`` (3,) tiles per axis.
 
     The lattice is the reconstruction's: cubes of ``parameters.cube_size`` from `offset`.
     Every cube belongs to exactly one tile; the outermost tiles own everything beyond.
+    Each tile reads `halo_radii` rho_delta and ``HALO_CUBES`` cubes around its cubes.
     """
     cube = parameters.cube_size
     first = np.floor((np.asarray(low) - offset) / cube).astype(np.int64)
     last = np.floor((np.asarray(high) - offset) / cube).astype(np.int64) + 1
-    halo = HALO_RADII * parameters.rho_delta + HALO_CUBES * cube
+    halo = halo_radii * parameters.rho_delta + HALO_CUBES * cube
     cuts = [
         np.linspace(first[a], last[a], int(counts[a]) + 1).round().astype(np.int64)
         for a in range(3)
@@ -196,7 +208,9 @@ def reconstruct_tiled(
         start = time.perf_counter()
         parameters = _estimate(client, source, config, low, high, offset, counts, progress)
         timings["parameters"] = time.perf_counter() - start
-    plan = plan_tiles(low, high, offset, parameters, counts)
+    # The blended jets reach further than the planes: see zeroset.jets.REACH.
+    reach = max(HALO_RADII, REACH) if config.surface == "jets" else HALO_RADII
+    plan = plan_tiles(low, high, offset, parameters, counts, halo_radii=reach)
 
     start = time.perf_counter()
     fits = [
@@ -226,6 +240,11 @@ def reconstruct_tiled(
     stats["tile_grid"] = [int(c) for c in counts]
     stats["tile_components_flipped"] = sum(len(flip) for flip in flips)
     mesh = repair(_weld(pieces), parameters, config, stats)
+    jets = _owned_jets(pieces)
+    if jets is not None:
+        mesh, refined = refine_mesh(mesh, jets, noise=parameters.noise, levels=config.refine_levels)
+        stats.update(refined)
+        stats["jets"], stats["fit_support"] = jets.centres.shape[0], jets.support
     mesh = Mesh(vertices=mesh.vertices + offset, faces=mesh.faces)
     stats.update(mesh_stats(mesh))
     timings["weld"] = time.perf_counter() - start
@@ -525,10 +544,17 @@ def _contour_tile(fit: dict | None, flips: dict, parameters: Parameters) -> dict
     for component, flip in flips.items():
         sign[component] = flip
     normals = fitted.orientation.normals * sign[fitted.orientation.component][:, None]
+    jets = oriented_jets(fitted, normals)
     field_ = distance_field(
-        fit["local"], fitted, normals, parameters, stats, Stages((), show=False)
+        fit["local"], fitted, normals, parameters, stats, Stages((), show=False), jets=jets
     )
     edge_keys, vertices, faces, cube_keys = keyed_marching_cubes(field_, owned=fit["tile"].owned)
+    for key in ("jets", "fit_support"):  # the client counts the jets the tiles own
+        stats.pop(key, None)
+    if jets is not None:
+        lo, hi = fit["tile"].owned
+        cube = np.floor(jets.centres / parameters.cube_size)
+        jets = _select_jets(jets, np.all((cube >= lo) & (cube < hi), axis=1))
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     return {
         **empty,
@@ -538,7 +564,37 @@ def _contour_tile(fit: dict | None, flips: dict, parameters: Parameters) -> dict
         "cube_keys": cube_keys,
         "stats": stats,
         "peak_mib": peak,
+        "jets": jets,
     }
+
+
+def _select_jets(jets: Jets, rows) -> Jets:
+    """The jets of `rows` (a mask or indices), the other fields kept."""
+    return replace(
+        jets,
+        centres=jets.centres[rows],
+        frames=jets.frames[rows],
+        coefficients=jets.coefficients[rows],
+        radii=jets.radii[rows],
+        curvature=jets.curvature[rows],
+    )
+
+
+def _owned_jets(pieces) -> Jets | None:
+    """The union of the jets each tile owns (those centred in its cubes), or None."""
+    owned = [p["jets"] for p in pieces if p.get("jets") is not None]
+    if not owned:
+        return None
+    radii = np.concatenate([j.radii for j in owned])
+    return Jets(
+        centres=np.concatenate([j.centres for j in owned]),
+        frames=np.concatenate([j.frames for j in owned]),
+        coefficients=np.concatenate([j.coefficients for j in owned]),
+        radii=radii,
+        curvature=np.concatenate([j.curvature for j in owned]),
+        support=float(np.median(radii)),
+        notes=owned[0].notes,
+    )
 
 
 def _weld(pieces) -> Mesh:

@@ -18,6 +18,7 @@ __all__ = [
     "edge_face_pairs",
     "fold_cosines",
     "euler_characteristic",
+    "face_area_vectors",
     "face_components",
     "is_consistently_oriented",
     "is_edge_manifold",
@@ -158,6 +159,12 @@ def euler_characteristic(mesh: Mesh) -> int:
     """V - E + F over the vertices that faces use."""
     n_edges = edge_ids(mesh.faces, mesh.n_vertices)[1].size
     return int(np.unique(mesh.faces).size - n_edges + mesh.faces.shape[0])
+
+
+def face_area_vectors(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """(F, 3) normal of every face with twice its area as length (zero for a degenerate face)."""
+    a, b, c = (vertices[faces[:, i]] for i in range(3))
+    return np.cross(b - a, c - a)
 
 
 def signed_volume(mesh: Mesh) -> float:

@@ -11,6 +11,7 @@ import numpy as np
 
 __all__ = [
     "DistanceField",
+    "Jets",
     "Mesh",
     "Neighbourhoods",
     "Orientation",
@@ -129,6 +130,41 @@ class TangentPlanes(_Frozen):
     normals: np.ndarray
     eigenvalues: np.ndarray
     neighbour_count: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class Jets(_Frozen):
+    """Oriented quadric height fits (jets) whose blend is the surface (`zeroset.jets`).
+
+    Jet j is the height function ``h(u, v) = a0 + a1 u + a2 v + a3 u^2 + a4 u v + a5 v^2``
+    over the frame at ``centres[j]`` whose rows are e1, e2 and the normal n: a point x has
+    ``u = (x - c) . e1``, ``v = (x - c) . e2`` and height ``w = (x - c) . n``.
+
+    Attributes
+    ----------
+    centres : (J, 3) float64
+        Weighted centroid of each jet's support.
+    frames : (J, 3, 3) float64
+        Rows e1, e2, n; n is oriented like the tangent planes.
+    coefficients : (J, 6) float64
+        a0 ... a5, in data units.
+    radii : (J,) float64
+        Support radius of each jet, in data units.
+    curvature : (J,) float64
+        Largest absolute principal curvature of each jet, in 1 / data units.
+    support : float
+        Median support radius.
+    notes : tuple of str
+        How the supports were chosen.
+    """
+
+    centres: np.ndarray
+    frames: np.ndarray
+    coefficients: np.ndarray
+    radii: np.ndarray
+    curvature: np.ndarray
+    support: float
+    notes: tuple[str, ...] = field(default=())
 
 
 @dataclass(frozen=True, eq=False)
