@@ -13,7 +13,18 @@ import os
 import tempfile
 from pathlib import Path
 
-SECTIONS = ("phase1", "phase2", "cubes", "report", "large", "tiles", "scans", "registered", "peers")
+SECTIONS = (
+    "accuracy",
+    "phase1",
+    "phase2",
+    "cubes",
+    "report",
+    "large",
+    "tiles",
+    "scans",
+    "registered",
+    "peers",
+)
 
 INTRO = """# Benchmarks
 
@@ -21,6 +32,9 @@ Measured by the scripts in `benchmarks/`, run by hand. Each script rewrites only
 section of this file, between the HTML comments `<!-- NAME:begin -->` and `<!-- NAME:end -->`,
 and keeps the rest (this introduction included):
 
+- [Accuracy](#accuracy-of-the-surface-planes-and-jets): bias and error of Hoppe's planes and
+  the blended jets against the truth, an open pipe from 5k to 1M points and spheres of five
+  radii (`benchmarks/bench_accuracy.py`).
 - [Phase 1](#phase-1-speed-and-memory): speed and memory of `zeroset.reconstruct()` on a noisy
   open pipe, 20k to 1M points (`benchmarks/bench_phase1.py`).
 - [Phase 2](#phase-2-mesh-optimisation): speed, memory and accuracy of `zeroset.optimize()`

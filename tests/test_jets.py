@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 from zeroset import reconstruct, topology
+from zeroset.config import ReconstructionConfig
 from zeroset.evaluate import sample_surface
 from zeroset.jets import evaluate_jets, fit_jets, orient_jets
 from zeroset.refine import project_to_surface, split_edges, unique_edges
@@ -151,3 +152,16 @@ def test_fit_jets_recovers_a_known_quadric(rng):
     values, _ = evaluate_jets(jets, probe)
     truth = probe[:, 2] - 0.5 * (probe[:, 0] ** 2 - probe[:, 1] ** 2)
     np.testing.assert_allclose(values, truth, atol=2e-4)
+
+
+@pytest.mark.parametrize(
+    "option, message",
+    [
+        ({"surface": "spheres"}, "surface must be one of"),
+        ({"fit_support": 0.0}, "fit_support must be positive"),
+        ({"refine_levels": -1}, "refine_levels must lie in 0..4"),
+    ],
+)
+def test_bad_surface_options_are_refused(option, message):
+    with pytest.raises(ValueError, match=message):
+        ReconstructionConfig(**option)

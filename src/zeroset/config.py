@@ -65,7 +65,8 @@ class ReconstructionConfig:
         None, "support radius of the jets in data units (default: bias-variance rule per region)"
     )
     refine_levels: int | None = _opt(
-        None, "four-way splits of the contoured triangles (default: from the curvature, jets only)"
+        None,
+        "split every triangle edge this many times (default: split where a chord sags, jets only)",
     )
     min_component_faces: int = _opt(20, "drop mesh components with fewer faces")
     max_hole_edges: int = _opt(6, "close boundary loops of at most this many edges (0: none)")
@@ -82,6 +83,10 @@ class ReconstructionConfig:
             raise ValueError(f"contour must be one of {CONTOURS}; got {self.contour!r}")
         if self.surface not in SURFACES:
             raise ValueError(f"surface must be one of {SURFACES}; got {self.surface!r}")
+        if self.fit_support is not None and not self.fit_support > 0:
+            raise ValueError(f"fit_support must be positive; got {self.fit_support!r}")
+        if self.refine_levels is not None and not 0 <= self.refine_levels <= 4:
+            raise ValueError(f"refine_levels must lie in 0..4; got {self.refine_levels!r}")
         if self.k_max <= self.min_neighbours or self.k_max < self.k_min:
             raise ValueError(
                 f"k_max must exceed min_neighbours and be at least k_min; got k_max={self.k_max}, "

@@ -332,6 +332,7 @@ def fit_planes(local, viewpoints, parameters, config, stats, stages) -> FittedPl
             )
             stats["jets"] = jets.centres.shape[0]
             stats["fit_support"] = jets.support
+            stats["fit_notes"] = "; ".join(jets.notes)
     return FittedPlanes(phase1, radii, sectors, planes, orientation, jets)
 
 

@@ -176,6 +176,7 @@ def format_report(report: dict) -> str:
         *_registration_lines(report.get("registration")),
         *(f"parameter   {note}" for note in report["parameters"]["notes"]),
         *_density_lines(stats),
+        *_surface_lines(report["config"].get("surface", "jets"), stats),
         *_tile_lines(stats),
         f"orientation {stats['orientation_components']} component(s)"
         + _disagreement(stats.get("orientation_disagreement")),
@@ -196,6 +197,22 @@ def format_report(report: dict) -> str:
         + (f"; peak memory {report['peak_mib']:,.0f} MiB" if "peak_mib" in report else ""),
     ]
     return "\n".join(lines)
+
+
+def _surface_lines(surface: str, stats: dict) -> list[str]:
+    """Which surface function was contoured; for the jets, their support and refinement."""
+    if surface == "planes" or "jets" not in stats:
+        return ["surface     nearest tangent plane (Hoppe 1992)"]
+    lines = [
+        f"surface     blended jets: {stats['jets']:,} quadric fits, {stats['fit_notes']}",
+    ]
+    if "refine_levels" in stats:
+        lines.append(
+            f"refine      vertices projected onto the surface ({stats['projection_held']:,} held "
+            f"back so that no triangle turns over); {stats['edges_split']:,} edges split in "
+            f"{stats['refine_levels']} round(s) where their chords sagged"
+        )
+    return lines
 
 
 def _density_lines(stats: dict) -> list[str]:

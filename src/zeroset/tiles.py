@@ -245,6 +245,7 @@ def reconstruct_tiled(
         mesh, refined = refine_mesh(mesh, jets, noise=parameters.noise, levels=config.refine_levels)
         stats.update(refined)
         stats["jets"], stats["fit_support"] = jets.centres.shape[0], jets.support
+        stats["fit_notes"] = "; ".join(jets.notes)
     mesh = Mesh(vertices=mesh.vertices + offset, faces=mesh.faces)
     stats.update(mesh_stats(mesh))
     timings["weld"] = time.perf_counter() - start
@@ -549,7 +550,7 @@ def _contour_tile(fit: dict | None, flips: dict, parameters: Parameters) -> dict
         fit["local"], fitted, normals, parameters, stats, Stages((), show=False), jets=jets
     )
     edge_keys, vertices, faces, cube_keys = keyed_marching_cubes(field_, owned=fit["tile"].owned)
-    for key in ("jets", "fit_support"):  # the client counts the jets the tiles own
+    for key in ("jets", "fit_support", "fit_notes"):  # the client counts the jets owned
         stats.pop(key, None)
     if jets is not None:
         lo, hi = fit["tile"].owned
