@@ -38,7 +38,7 @@ def _surface_errors(shape, radius, mesh):
     (for the open pipe, away from its ends)."""
     x, _ = sample_surface(mesh, 100_000, rng=0)
     if shape == "pipe":
-        x = x[np.abs(x[:, 2]) < 1.5 * radius]
+        x = x[np.abs(x[:, 2] - 2.0 * radius) < 1.5 * radius]  # the pipe spans z in [0, 4 r]
     d = _signed(shape, radius, x)
     return d.mean(), np.abs(d).mean()
 

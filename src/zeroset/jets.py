@@ -54,6 +54,8 @@ MIN_CELLS = 16
 MISFIT_LIMIT, MISFIT_HALVINGS = 4.0, 2
 #: Jets blended at a position (the partition of unity uses one more for its reach).
 BLEND_K = 8
+#: Oriented planes that vote on each jet's orientation.
+ORIENT_K = 8
 #: Every value of the surface lies within this many rho+delta of all the points it
 #: depends on: blend (half a support), support, the pilots that set it and the feet.
 REACH = 16.0
@@ -61,7 +63,9 @@ REACH = 16.0
 
 def fit_jets(
     points,
-    feet=None,
+    owner=None,
+    origins=None,
+    normals=None,
     *,
     noise: float,
     rho_delta: float,
@@ -82,8 +86,10 @@ def fit_jets(
     ----------
     points : (N, 3) array_like of float
         Data points, in data units.
-    feet : (N, 3) array_like of float, optional
-        Each point projected onto a tangent plane near it; the points themselves by default.
+    owner : (N,) array_like of int, optional
+        The tangent plane each point belongs to (its cell in phase 1), with the planes'
+        `origins` and unit `normals` (M, 3); a point's foot is its projection onto its
+        plane. By default every point is its own cell and its foot is itself at first.
     noise : float
         Noise level sigma (`zeroset.types.Parameters.noise`), in data units.
     rho_delta : float
@@ -99,15 +105,24 @@ def fit_jets(
         oriented (`orient_jets`).
     """
     points = as_points(points)
-    feet = points if feet is None else as_points(feet, "feet")
+    if owner is None:
+        owner, origins = np.arange(points.shape[0]), points
+    else:
+        owner = np.asarray(owner, dtype=np.int64)
+        origins = as_points(origins, "origins")
+        normals = as_points(normals, "normals")
     rho_delta = positive(rho_delta, "rho_delta")
     sigma = max(float(noise), 1e-6 * rho_delta)
-    pilots, pilot_h, note = _pilot_fits(points, feet, sigma, rho_delta)
+    pilots, pilot_h, note = _pilot_fits(
+        points, _feet(points, owner, origins, normals), sigma, rho_delta
+    )
     # Feet on the pilots' surface: the planes' feet still follow the noise where a plane
     # is tilted, and their cells again hold one side of the shell more than the other.
-    values, gradients = evaluate_jets(pilots, points, k=1)
-    squared = np.maximum(np.einsum("ij,ij->i", gradients, gradients), 0.25)
-    feet = points - (values / squared)[:, None] * gradients
+    # Each plane is replaced by the pilots' tangent plane at its origin.
+    values, gradients = evaluate_jets(pilots, origins, k=1)
+    length = np.maximum(np.linalg.norm(gradients, axis=1), 0.5)
+    normals = gradients / length[:, None]
+    feet = _feet(points, owner, origins - (values / length)[:, None] * normals, normals)
     if support is not None:
         support = positive(support, "support")
         note = f"support = {support:.6g}: given"
@@ -147,6 +162,14 @@ def fit_jets(
     return _jets(tuple(np.concatenate(parts) for parts in zip(*fits, strict=True)), note)
 
 
+def _feet(points, owner, origins, normals) -> np.ndarray:
+    """(N, 3) every point projected onto the plane of its owner; the points without normals."""
+    if normals is None:
+        return points
+    n = normals[owner]
+    return points - np.einsum("ij,ij->i", points - origins[owner], n)[:, None] * n
+
+
 def _level(support: np.ndarray, rho_delta: float) -> np.ndarray:
     """Rung of the cell ladder for each support: supports in [sqrt(2)^s, sqrt(2)^(s+1)) rho."""
     ratio = np.maximum(support / rho_delta, 1.0)
@@ -173,7 +196,11 @@ def _jets(fit, note: str) -> Jets:
 
 
 def orient_jets(jets: Jets, centroids, normals) -> Jets:
-    """Turn every jet's normal (and height) to agree with the nearest oriented plane.
+    """Turn every jet's normal (and height) to agree with the nearest oriented planes.
+
+    The planes vote, ``ORIENT_K`` nearest the jet's centre, each with the cosine between
+    its normal and the jet's: one plane turned the wrong way cannot turn a jet, whose
+    wrong sign would bend the blend over its whole support.
 
     Parameters
     ----------
@@ -184,8 +211,11 @@ def orient_jets(jets: Jets, centroids, normals) -> Jets:
     """
     centroids = as_points(centroids, "centroids")
     normals = as_points(normals, "normals")
-    _, plane = build_tree(centroids).query(jets.centres, workers=-1)
-    sign = np.where(np.einsum("ij,ij->i", jets.frames[:, 2], normals[plane]) < 0.0, -1.0, 1.0)
+    k = min(ORIENT_K, centroids.shape[0])
+    _, plane = build_tree(centroids).query(jets.centres, k=k, workers=-1)
+    plane = plane.reshape(-1, k)
+    vote = np.einsum("ij,ikj->i", jets.frames[:, 2], normals[plane])
+    sign = np.where(vote < 0.0, -1.0, 1.0)
     frames = jets.frames.copy()
     frames[:, 2] *= sign[:, None]
     return replace(jets, frames=frames, coefficients=jets.coefficients * sign[:, None])

@@ -324,8 +324,12 @@ def fit_planes(local, viewpoints, parameters, config, stats, stages) -> FittedPl
     jets = None
     if config.surface == "jets":
         with stages.stage("local fits"):
+            rows = keep[cell]  # every point of the cells kept, with its cell's plane
             jets = fit_jets(
-                *_plane_feet(local, cell, keep, planes),
+                local[rows],
+                (np.cumsum(keep) - 1)[cell[rows]],
+                planes.centroids,
+                planes.normals,
                 noise=parameters.noise,
                 rho_delta=parameters.rho_delta,
                 support=config.fit_support,
@@ -334,16 +338,6 @@ def fit_planes(local, viewpoints, parameters, config, stats, stages) -> FittedPl
             stats["fit_support"] = jets.support
             stats["fit_notes"] = "; ".join(jets.notes)
     return FittedPlanes(phase1, radii, sectors, planes, orientation, jets)
-
-
-def _plane_feet(local, cell, keep, planes) -> tuple[np.ndarray, np.ndarray]:
-    """The points (K, 3) of the cells kept and their feet (K, 3) on their cell's plane."""
-    rows = keep[cell]
-    owner = (np.cumsum(keep) - 1)[cell[rows]]
-    points = local[rows]
-    normals = planes.normals[owner]
-    height = np.einsum("ij,ij->i", points - planes.centroids[owner], normals)
-    return points, points - height[:, None] * normals
 
 
 def oriented_jets(fitted: FittedPlanes, normals: np.ndarray) -> Jets | None:

@@ -330,7 +330,8 @@ def group_means(
     ----------
     points : (N, 3) float64
     labels : (N,) int64
-        Group of every point; groups are numbered in the order of their labels.
+        Group of every point, numbered 0 .. M-1 with every number used
+        (`cell_labels` makes such labels).
     *others : (N, ...) float64
         Per-point arrays (e.g. viewpoints) to average the same way.
     weights : (N,) float64, optional
@@ -345,8 +346,6 @@ def group_means(
         weighted covariance of each group (in squared data units), then the means of each
         of `others`.
     """
-    _, labels = np.unique(labels, return_inverse=True)
-    labels = labels.reshape(-1)
     weights = np.ones(points.shape[0]) if weights is None else np.asarray(weights, np.float64)
     total = np.bincount(labels, weights=weights)
 

@@ -26,6 +26,18 @@ def _quartic(x, u, v):
 
 
 @jit
+def _frame_coordinates(point, centre, frame):
+    # (u, v, h) of a point in the frame (rows e1, e2, n) at centre.
+    u = v = h = 0.0
+    for d in range(3):
+        y = point[d] - centre[d]
+        u += y * frame[0, d]
+        v += y * frame[1, d]
+        h += y * frame[2, d]
+    return u, v, h
+
+
+@jit
 def _height(x, u, v):
     q, _, _ = _quartic(x, u, v)
     return x[0] + x[1] * u + x[2] * v + x[3] * u * u + x[4] * u * v + x[5] * v * v + q
@@ -58,12 +70,7 @@ def _solve_quadric(points, weights, spreads, indices, distances, i, r, c, frame,
         if q < 1.0:
             j = indices[i, s]
             w = weights[j] * (1.0 - q * q) ** 2
-            u = v = h = 0.0
-            for d in range(3):
-                y = points[j, d] - c[d]
-                u += y * frame[0, d]
-                v += y * frame[1, d]
-                h += y * frame[2, d]
+            u, v, h = _frame_coordinates(points[j], c, frame)
             h -= _quartic(x, u, v)[0]
             suu = suv = svv = 0.0
             for a in range(3):
@@ -149,12 +156,7 @@ def _fit_rows(points, weights, spreads, indices, distances, radius, min_count, c
             q = distances[i, s] / r
             if q < 1.0:
                 j = indices[i, s]
-                u = v = h = 0.0
-                for d in range(3):
-                    y = points[j, d] - c[d]
-                    u += y * frame[0, d]
-                    v += y * frame[1, d]
-                    h += y * frame[2, d]
+                u, v, h = _frame_coordinates(points[j], c, frame)
                 e = h - _height(x, u, v)
                 res += weights[j] * (1.0 - q * q) ** 2 * e * e
         for d in range(3):
@@ -202,12 +204,7 @@ def _blend_rows(positions, indices, distances, centres, frames, coefficients, va
             if w == 0.0:
                 continue
             j = indices[i, s]
-            u = v = h = 0.0
-            for d in range(3):
-                x = positions[i, d] - centres[j, d]
-                u += x * frames[j, 0, d]
-                v += x * frames[j, 1, d]
-                h += x * frames[j, 2, d]
+            u, v, h = _frame_coordinates(positions[i], centres[j], frames[j])
             a = coefficients[j]
             q, qu, qv = _quartic(a, u, v)
             height = a[0] + a[1] * u + a[2] * v + a[3] * u * u + a[4] * u * v + a[5] * v * v + q
