@@ -44,7 +44,7 @@ JET_BIAS = 0.025
 #: Supports, in rho+delta: the smallest, and the largest (within the tiles' halo).
 MIN_SUPPORT, MAX_SUPPORT = 1.0, 6.0
 #: Support of the pilot fits, in rho+delta.
-PILOT_SUPPORT = 4.0
+PILOT_SUPPORT = 2.5
 #: Cells a fit's support should hold, and the neighbours searched for them.
 CELLS_PER_SUPPORT, FIT_K = 40, 64
 #: Fewest cells a jet is fitted to, whatever its support.
@@ -113,7 +113,7 @@ def fit_jets(
         normals = as_points(normals, "normals")
     rho_delta = positive(rho_delta, "rho_delta")
     sigma = max(float(noise), 1e-6 * rho_delta)
-    pilots, pilot_h, note = _pilot_fits(
+    pilots, pilot_h, sigma, note = _pilot_fits(
         points, _feet(points, owner, origins, normals), sigma, rho_delta
     )
     # Feet on the pilots' surface: the planes' feet still follow the noise where a plane
@@ -255,7 +255,7 @@ def evaluate_jets(jets: Jets, positions, *, k: int = BLEND_K) -> tuple[np.ndarra
 
 def _pilot_fits(points, feet, sigma, rho_delta):
     """Pilot jets, one per cell of a support of PILOT_SUPPORT rho_delta, their supports
-    (P,) by the bias-variance rule, and a note on it."""
+    (P,) by the bias-variance rule, the noise it used, and a note on it."""
     cell = PILOT_SUPPORT * rho_delta * np.sqrt(np.pi / CELLS_PER_SUPPORT)
     cells, counts, spread = group_means(points, cell_labels(feet, cell))
     k = min(FIT_K, cells.shape[0])
@@ -263,6 +263,9 @@ def _pilot_fits(points, feet, sigma, rho_delta):
     radius = np.minimum(PILOT_SUPPORT * rho_delta, distances[:, -1])
     fit = fit_rows(cells, counts, spread, indices, distances, radius, min(MIN_CELLS, k))
     pilots = _jets(fit, "pilot fits")
+    # The planes' noise holds what curvature their neighbourhoods had; the pilots' residuals
+    # do not, and on a detailed object they are the smaller, truer measure.
+    sigma = min(sigma, float(np.sqrt(np.median(fit[5]))))
     density = fit[4] / (np.pi * pilots.radii**2)
     extent = float(np.ptp(points, axis=0).max())
     kappa = np.maximum(pilots.curvature, 1.0 / extent)
@@ -276,9 +279,9 @@ def _pilot_fits(points, feet, sigma, rho_delta):
         f"{np.quantile(h, 0.9):.4g}): bias-variance rule h^10 = {JET_VARIANCE:g} sigma^2 / "
         f"({JET_BIAS:g}^2 kappa^6 pi D) on {h.size} pilot fits, median curvature "
         f"{np.median(kappa):.4g}, density {np.median(density):.4g} points per unit area, "
-        f"within [{MIN_SUPPORT:g}, {MAX_SUPPORT:g}] rho_delta"
+        f"noise {sigma:.4g}, within [{MIN_SUPPORT:g}, {MAX_SUPPORT:g}] rho_delta"
     )
-    return pilots, h, note
+    return pilots, h, sigma, note
 
 
 def _largest_curvature(coefficients: np.ndarray) -> np.ndarray:
