@@ -113,7 +113,7 @@ def fit_jets(
         normals = as_points(normals, "normals")
     rho_delta = positive(rho_delta, "rho_delta")
     sigma = max(float(noise), 1e-6 * rho_delta)
-    pilots, pilot_h, sigma, note = _pilot_fits(
+    pilots, pilot_h, note = _pilot_fits(
         points, _feet(points, owner, origins, normals), sigma, rho_delta
     )
     # Feet on the pilots' surface: the planes' feet still follow the noise where a plane
@@ -255,7 +255,7 @@ def evaluate_jets(jets: Jets, positions, *, k: int = BLEND_K) -> tuple[np.ndarra
 
 def _pilot_fits(points, feet, sigma, rho_delta):
     """Pilot jets, one per cell of a support of PILOT_SUPPORT rho_delta, their supports
-    (P,) by the bias-variance rule, the noise it used, and a note on it."""
+    (P,) by the bias-variance rule, and a note on it."""
     cell = PILOT_SUPPORT * rho_delta * np.sqrt(np.pi / CELLS_PER_SUPPORT)
     cells, counts, spread = group_means(points, cell_labels(feet, cell))
     k = min(FIT_K, cells.shape[0])
@@ -264,8 +264,12 @@ def _pilot_fits(points, feet, sigma, rho_delta):
     fit = fit_rows(cells, counts, spread, indices, distances, radius, min(MIN_CELLS, k))
     pilots = _jets(fit, "pilot fits")
     # The planes' noise holds what curvature their neighbourhoods had; the pilots' residuals
-    # do not, and on a detailed object they are the smaller, truer measure.
-    sigma = min(sigma, float(np.sqrt(np.median(fit[5]))))
+    # do not, and on a detailed object they are the smaller, truer measure. Taken over the
+    # 8 nearest pilots, so that it stays local (and tiles see the same).
+    near = min(8, cells.shape[0])
+    _, nearest = build_tree(pilots.centres).query(pilots.centres, k=near, workers=-1)
+    residual = np.median(fit[5][nearest.reshape(-1, near)], axis=1)
+    sigma = np.minimum(sigma, np.sqrt(residual))
     density = fit[4] / (np.pi * pilots.radii**2)
     extent = float(np.ptp(points, axis=0).max())
     kappa = np.maximum(pilots.curvature, 1.0 / extent)
@@ -279,9 +283,10 @@ def _pilot_fits(points, feet, sigma, rho_delta):
         f"{np.quantile(h, 0.9):.4g}): bias-variance rule h^10 = {JET_VARIANCE:g} sigma^2 / "
         f"({JET_BIAS:g}^2 kappa^6 pi D) on {h.size} pilot fits, median curvature "
         f"{np.median(kappa):.4g}, density {np.median(density):.4g} points per unit area, "
-        f"noise {sigma:.4g}, within [{MIN_SUPPORT:g}, {MAX_SUPPORT:g}] rho_delta"
+        f"noise {np.median(sigma):.4g} (median), within [{MIN_SUPPORT:g}, {MAX_SUPPORT:g}] "
+        "rho_delta"
     )
-    return pilots, h, sigma, note
+    return pilots, h, note
 
 
 def _largest_curvature(coefficients: np.ndarray) -> np.ndarray:
