@@ -16,8 +16,8 @@ what an inspection reports as a defect) is
     h^10 = c_v sigma^2 / (beta^2 kappa^6 pi D)
 
 with sigma the noise, D the points per unit area and kappa the largest principal
-curvature, both measured by pilot fits. It grows with density, so the error falls as
-points are added. Jets whose residuals exceed the noise by far (creases, a second sheet
+curvature, all measured by pilot fits. The points in a support grow with density (as
+D^0.8), so the error falls as points are added. Jets whose residuals exceed the noise by far (creases, a second sheet
 inside the support) are refitted on half the support.
 """
 

@@ -196,7 +196,7 @@ def _blend_rows(positions, indices, distances, centres, frames, coefficients, va
         total = 0.0
         f = 0.0
         g0 = g1 = g2 = 0.0
-        for s in range(k - 1):
+        for s in range(max(k - 1, 1)):  # a single jet stands alone
             q = distances[i, s] / reach if reach > 0.0 else 0.0
             w = (1.0 - q * q) ** 2 if q < 1.0 else 0.0
             if s == 0 and w == 0.0:
