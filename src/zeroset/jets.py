@@ -17,8 +17,8 @@ what an inspection reports as a defect) is
 
 with sigma the noise, D the points per unit area and kappa the largest principal
 curvature, all measured by pilot fits. The points in a support grow with density (as
-D^0.8), so the error falls as points are added. Jets whose residuals exceed the noise by far (creases, a second sheet
-inside the support) are refitted on half the support.
+D^0.8), so the error falls as points are added. Jets whose residuals exceed the noise by
+far (creases, a second sheet inside the support) are refitted on half the support.
 """
 
 from __future__ import annotations

@@ -125,9 +125,10 @@ def split_edges(mesh: Mesh, marked: np.ndarray) -> Mesh:
 
 def unique_edges(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The (E, 2) edges of `faces`, lower index first, and (F, 3) the edge from corner i to i+1."""
-    ends = np.stack([faces, np.roll(faces, -1, axis=1)], axis=2).reshape(-1, 2)
-    edges, index = np.unique(np.sort(ends, axis=1), axis=0, return_inverse=True)
-    return edges, index.reshape(faces.shape)
+    ends = np.sort(np.stack([faces, np.roll(faces, -1, axis=1)], axis=2).reshape(-1, 2), axis=1)
+    span = int(faces.max(initial=0)) + 1
+    keys, index = np.unique(ends[:, 0] * span + ends[:, 1], return_inverse=True)
+    return np.stack([keys // span, keys % span], axis=1), index.reshape(faces.shape)
 
 
 def refine_mesh(mesh: Mesh, jets: Jets, *, noise: float, levels: int | None = None):
