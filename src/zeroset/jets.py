@@ -113,7 +113,7 @@ def fit_jets(
         normals = as_points(normals, "normals")
     rho_delta = positive(rho_delta, "rho_delta")
     sigma = max(float(noise), 1e-6 * rho_delta)
-    pilots, pilot_h, note = _pilot_fits(
+    pilots, pilot_h, pilot_of, note = _pilot_fits(
         points, _feet(points, owner, origins, normals), sigma, rho_delta
     )
     # Feet on the pilots' surface: the planes' feet still follow the noise where a plane
@@ -129,9 +129,22 @@ def fit_jets(
         pilot_h = np.full(pilot_h.size, min(support, MAX_SUPPORT * rho_delta))
     pilot_tree = build_tree(pilots.centres)
     near = min(8, pilot_h.size)
+    _, nearest = pilot_tree.query(pilots.centres, k=near, workers=-1)
+    pilot_level = _level(np.median(pilot_h[nearest.reshape(-1, near)], axis=1), rho_delta)
     fits, halved = [], 0
-    for level in np.unique(_level(pilot_h, rho_delta)):
-        cells, counts, spread = group_means(points, cell_labels(feet, _cell(level, rho_delta)))
+    for level in np.unique(pilot_level):
+        # The points that jets of this rung can reach: those of the pilots within the rung's
+        # largest support (and two pilot cells) of a pilot on the rung.
+        reach = rho_delta * (np.sqrt(2.0) ** (level + 1) + 4.0 * PILOT_SUPPORT)
+        on_rung = build_tree(pilots.centres[pilot_level == level])
+        used = np.isfinite(
+            on_rung.query(pilots.centres, distance_upper_bound=reach, workers=-1)[0]
+        )
+        rows = slice(None) if used.all() else used[pilot_of]
+        subset, subset_feet = points[rows], feet[rows]
+        cells, counts, spread = group_means(
+            subset, cell_labels(subset_feet, _cell(level, rho_delta))
+        )
         _, nearest = pilot_tree.query(cells, k=near, workers=-1)
         radius = np.median(pilot_h[nearest.reshape(cells.shape[0], near)], axis=1)
         rows = np.flatnonzero(_level(radius, rho_delta) == level)
@@ -255,9 +268,10 @@ def evaluate_jets(jets: Jets, positions, *, k: int = BLEND_K) -> tuple[np.ndarra
 
 def _pilot_fits(points, feet, sigma, rho_delta):
     """Pilot jets, one per cell of a support of PILOT_SUPPORT rho_delta, their supports
-    (P,) by the bias-variance rule, and a note on it."""
+    (P,) by the bias-variance rule, the pilot of every point (N,), and a note."""
     cell = PILOT_SUPPORT * rho_delta * np.sqrt(np.pi / CELLS_PER_SUPPORT)
-    cells, counts, spread = group_means(points, cell_labels(feet, cell))
+    pilot_of = cell_labels(feet, cell)
+    cells, counts, spread = group_means(points, pilot_of)
     k = min(FIT_K, cells.shape[0])
     distances, indices = build_tree(cells).query(cells, k=k, workers=-1)
     radius = np.minimum(PILOT_SUPPORT * rho_delta, distances[:, -1])
@@ -286,7 +300,7 @@ def _pilot_fits(points, feet, sigma, rho_delta):
         f"noise {np.median(sigma):.4g} (median), within [{MIN_SUPPORT:g}, {MAX_SUPPORT:g}] "
         "rho_delta"
     )
-    return pilots, h, note
+    return pilots, h, pilot_of, note
 
 
 def _largest_curvature(coefficients: np.ndarray) -> np.ndarray:
