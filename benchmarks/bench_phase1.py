@@ -76,7 +76,12 @@ def run_child(n: int, repeat: int) -> dict:
         result = zeroset.reconstruct(points)
         total = time.perf_counter() - start
         runs.append({"total": total, "stages": dict(result.timings), "knn": _knn_seconds(points)})
-        stats = {key: int(value) for key, value in result.stats.items()}
+        stats = {  # the counts; notes and scales are reported elsewhere
+            key: int(value)
+            for key, value in result.stats.items()
+            if isinstance(value, int) or getattr(value, "dtype", None) is not None
+            and value.dtype.kind in "iu"
+        }
         del result
     return {
         "n": n,
