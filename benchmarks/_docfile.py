@@ -57,9 +57,11 @@ and keeps the rest (this introduction included):
 - [Several scans with poses](#several-scans-with-poses): the ten Stanford bunny range scans
   with their poses, as given and registered, against Stanford's reconstruction; how often the
   sensors and the spanning tree orient a normal differently (`benchmarks/bench_registered.py`).
-- [Peers](#peers-zeroset-against-open3d-pymeshlab-and-vtk): zeroset against the tools a user
-  would otherwise pick (Open3D, PyMeshLab, VTK) on synthetic pipes with exact ground truth and
-  on real scans (`benchmarks/bench_peers.py`, needs the `bench` extra).
+- [Peers](#peers-zeroset-against-open3d-pymeshlab-poissonrecon-and-vtk): zeroset against the
+  tools a user would otherwise pick (Open3D, PyMeshLab, Kazhdan's PoissonRecon with its
+  trimming, VTK) on synthetic pipes, a sphere and a torus with exact ground truth and on real
+  scans (`benchmarks/bench_peers.py`, needs the `bench` extra; Open3D also needs Debian's
+  `libusb-1.0-0`).
 """
 
 

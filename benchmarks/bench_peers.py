@@ -1,8 +1,14 @@
 """Benchmark zeroset against Open3D, PyMeshLab, PoissonRecon and VTK, for docs/benchmarks.md.
 
-Run by hand from the repository root (needs the ``bench`` extra; about 45 minutes on 2 cores)::
+Run by hand from the repository root (needs the ``bench`` extra, and Debian's libusb-1.0-0
+for Open3D). Every tool at 20k and 200k points took an hour on 2 cores; 1M points for the
+pipe and the scan with the Poisson tools at depth 8 took six minutes more::
 
-    python benchmarks/bench_peers.py --sizes 20000 200000 1000000 --timeout 300
+    python benchmarks/bench_peers.py --sizes 20000 200000 --timeout 300
+    python benchmarks/bench_peers.py --datasets pipe scan --sizes 1000000 --json more.json \
+        --tools zeroset open3d-poisson8 pymeshlab-poisson poissonrecon-d8-t5 ...
+
+Several runs' ``--json`` files can be merged by rows and rendered with ``--from-json``.
 
 Datasets: noisy synthetic surfaces with an exact truth mesh (the pipes ``pipe``, ``scan``,
 ``elbow``, ``tee`` and the closed ``sphere`` and ``torus``, from `zeroset.synthetic` with fixed
