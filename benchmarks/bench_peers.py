@@ -8,7 +8,7 @@ pipe and the scan with the Poisson tools at depth 8 took six minutes more::
     python benchmarks/bench_peers.py --datasets pipe scan --sizes 1000000 --json more.json \
         --tools zeroset open3d-poisson8 pymeshlab-poisson poissonrecon-d8-t5 ...
 
-Several runs' ``--json`` files can be merged by rows and rendered with ``--from-json``.
+Several runs' ``--json`` files are merged by rows with ``--from-json A.json B.json``.
 
 Datasets: noisy synthetic surfaces with an exact truth mesh (the pipes ``pipe``, ``scan``,
 ``elbow``, ``tee`` and the closed ``sphere`` and ``torus``, from `zeroset.synthetic` with fixed
@@ -1629,6 +1629,22 @@ def _picture(dataset: Dataset, cloud: Cloud, rows: list[Row], meshes: dict, fold
     return path
 
 
+def merge_results(saved: list[dict]) -> dict:
+    """One set of results from several runs' ``--json``: later rows replace earlier ones with
+    the same dataset, size and job; sizes, notes, truths and pictures are joined."""
+    merged = saved[0]
+    for extra in saved[1:]:
+        keys = {(row["dataset"], row["size"], row["job"]) for row in extra["rows"]}
+        merged["rows"] = [
+            row for row in merged["rows"] if (row["dataset"], row["size"], row["job"]) not in keys
+        ] + extra["rows"]
+        for dataset, sizes in extra["sizes"].items():
+            merged["sizes"][dataset] = sorted(set(merged["sizes"].get(dataset, [])) | set(sizes))
+        for name in ("notes", "truths", "images"):
+            merged[name] = {**extra.get(name, {}), **merged.get(name, {})}
+    return merged
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
     parser.add_argument("--datasets", nargs="+", choices=DATASET_NAMES, default=DATASET_NAMES)
@@ -1643,7 +1659,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--images", type=Path, default=DEFAULT_IMAGES, help="PNG folder")
     parser.add_argument("--json", type=Path, default=None, help="also save the raw results here")
     parser.add_argument(
-        "--from-json", type=Path, default=None, help="only rewrite the report from saved results"
+        "--from-json",
+        type=Path,
+        nargs="+",
+        default=None,
+        help="only rewrite the report from saved results; rows of later files replace those "
+        "of earlier ones for the same dataset, size and tool",
     )
     parser.add_argument("--child", nargs=2, metavar=("JOB", "FOLDER"), help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
@@ -1654,7 +1675,9 @@ def main(argv: list[str] | None = None) -> int:
         return 0
 
     if args.from_json is not None:
-        results = json.loads(args.from_json.read_text(encoding="utf-8"))
+        results = merge_results(
+            [json.loads(path.read_text(encoding="utf-8")) for path in args.from_json]
+        )
         results["rows"] = [Row(**row) for row in results["rows"]]
         replace_section(args.output, "peers", render(results, old_summary(args.output)))
         print(f"wrote {args.output}")
