@@ -126,6 +126,20 @@ def draw(pipes, spheres, path: Path) -> None:
     fig.savefig(path, dpi=110)
 
 
+def _pairs(rows, key):
+    """(value of `key`, planes row, jets row) for every value of `key`, ascending."""
+    for value in sorted({r[key] for r in rows}):
+        pair = {r["surface"]: r for r in rows if r[key] == value}
+        yield value, pair["planes"], pair["jets"]
+
+
+def _errors(planes, jets) -> str:
+    """Bias and error of both surfaces as four table cells, in mm."""
+    return " | ".join(
+        f"{r['bias'] * 1e3:+.3f} | {r['error'] * 1e3:.3f}" for r in (planes, jets)
+    )
+
+
 def section(pipes, spheres, machine) -> str:
     lines = [
         "## Accuracy of the surface: planes and jets",
@@ -143,13 +157,9 @@ def section(pipes, spheres, machine) -> str:
         "| jets support / rho+delta |",
         "|---:|---:|---:|---:|---:|---:|---:|",
     ]
-    for n in sorted({r["n"] for r in pipes}):
-        p = next(r for r in pipes if r["n"] == n and r["surface"] == "planes")
-        j = next(r for r in pipes if r["n"] == n and r["surface"] == "jets")
+    for n, p, j in _pairs(pipes, "n"):
         lines.append(
-            f"| {n:,} | {p['bias'] * 1e3:+.3f} | {p['error'] * 1e3:.3f} | "
-            f"{j['bias'] * 1e3:+.3f} | {j['error'] * 1e3:.3f} | {j['faces']:,} | "
-            f"{j['support'] / j['rho_delta']:.2f} |"
+            f"| {n:,} | {_errors(p, j)} | {j['faces']:,} | {j['support'] / j['rho_delta']:.2f} |"
         )
     lines += [
         "",
@@ -158,13 +168,7 @@ def section(pipes, spheres, machine) -> str:
         "| radius m | planes bias | planes error | jets bias | jets error |",
         "|---:|---:|---:|---:|---:|",
     ]
-    for radius in sorted({r["radius"] for r in spheres}):
-        p = next(r for r in spheres if r["radius"] == radius and r["surface"] == "planes")
-        j = next(r for r in spheres if r["radius"] == radius and r["surface"] == "jets")
-        lines.append(
-            f"| {radius:g} | {p['bias'] * 1e3:+.3f} | {p['error'] * 1e3:.3f} | "
-            f"{j['bias'] * 1e3:+.3f} | {j['error'] * 1e3:.3f} |"
-        )
+    lines += [f"| {radius:g} | {_errors(p, j)} |" for radius, p, j in _pairs(spheres, "radius")]
     lines += ["", *machine_lines(machine), ""]
     return "\n".join(lines)
 

@@ -8,7 +8,7 @@ from zeroset import reconstruct, topology
 from zeroset.config import ReconstructionConfig
 from zeroset.evaluate import sample_surface
 from zeroset.jets import evaluate_jets, fit_jets, orient_jets
-from zeroset.refine import project_to_surface, split_edges, unique_edges
+from zeroset.refine import project_to_surface, split_edges
 from zeroset.synthetic import sample_cylinder, sample_sphere, sample_torus
 from zeroset.types import Mesh
 
@@ -116,7 +116,7 @@ def test_projection_turns_no_triangle_over():
 def test_split_edges_keeps_boundaries_orientation_and_euler_characteristic(rng):
     result = reconstruct(_sample("pipe", 0.25, 5_000, 0.002).points, refine_levels=0)
     mesh = result.mesh
-    edges, _ = unique_edges(mesh.faces)
+    edges = topology.undirected_edges(mesh.faces)[0]
     for marked in (np.ones(edges.shape[0], bool), rng.random(edges.shape[0]) < 0.3):
         split = split_edges(mesh, marked)
         assert split.n_vertices == mesh.n_vertices + marked.sum()

@@ -4,9 +4,10 @@ import pytest
 from zeroset import InputError
 from zeroset.neighbours import knn
 from zeroset.prepare import (
-    cell_means,
+    cell_labels,
     crop,
     drop_outliers,
+    group_means,
     random_sample,
     reduce_chunks,
     voxel_sample,
@@ -102,10 +103,10 @@ def test_isolated_points_are_outliers(rng):
     assert keep[:-2].mean() > 0.95
 
 
-def test_cell_means_gives_one_mean_per_cell(rng):
+def test_group_means_of_cells_gives_one_mean_and_spread_per_cell(rng):
     points = rng.uniform(0, 1, (5000, 3))
     labels = rng.normal(size=(5000, 3))
-    means, counts, spread, label_means = cell_means(points, 0.5, labels)
+    means, counts, spread, label_means = group_means(points, cell_labels(points, 0.5), labels)
     assert means.shape == label_means.shape == (8, 3)
     assert counts.sum() == 5000
     cells = np.floor(means / 0.5)
@@ -117,23 +118,11 @@ def test_cell_means_gives_one_mean_per_cell(rng):
     np.testing.assert_allclose(spread[0], np.cov(points[in_first].T, bias=True), atol=1e-12)
 
 
-def test_cell_means_weighs_points(rng):
-    points = rng.uniform(0, 1, (2000, 3))
-    weights = rng.integers(1, 5, 2000).astype(float)
-    spreads = np.tile(np.eye(3) * 0.01, (2000, 1, 1))
-    # One cell holds every point.
-    means, totals, spread = cell_means(points, 2.0, weights=weights, spreads=spreads)
-    np.testing.assert_allclose(means[0], np.average(points, axis=0, weights=weights))
-    assert totals[0] == weights.sum()
-    expected = np.cov(points.T, aweights=weights, bias=True) + np.eye(3) * 0.01
-    np.testing.assert_allclose(spread[0], expected, atol=1e-12)
-
-
 @pytest.mark.parametrize("scale", [1.0, 1e17])  # 1e17: cells span more than 2**62 keys
-def test_cell_means_orders_cells_as_their_indices(rng, scale):
+def test_cell_labels_order_cells_as_their_indices(rng, scale):
     points = rng.normal(size=(3000, 3)) * scale
     size = 0.3 * scale
-    means, *_ = cell_means(points, size)
+    means, *_ = group_means(points, cell_labels(points, size))
     cells, label = np.unique(np.floor(points / size), axis=0, return_inverse=True)
     expected = np.stack([np.bincount(label.reshape(-1), weights=points[:, d]) for d in range(3)], 1)
     expected /= np.bincount(label.reshape(-1))[:, None]

@@ -33,7 +33,7 @@ from .neighbours import build_tree
 from .prepare import cell_labels, group_means
 from .types import Jets
 
-__all__ = ["evaluate_jets", "fit_jets", "orient_jets"]
+__all__ = ["concatenate_jets", "evaluate_jets", "fit_jets", "orient_jets", "select_jets"]
 
 #: Variance of a jet's value at its centre times (points in the support) / sigma^2, for the
 #: kernel (1 - (d/h)^2)^2 over a uniformly sampled disc (Monte Carlo, 2,000 trials).
@@ -128,9 +128,7 @@ def fit_jets(
         note = f"support = {support:.6g}: given"
         pilot_h = np.full(pilot_h.size, min(support, MAX_SUPPORT * rho_delta))
     pilot_tree = build_tree(pilots.centres)
-    near = min(8, pilot_h.size)
-    _, nearest = pilot_tree.query(pilots.centres, k=near, workers=-1)
-    pilot_level = _level(np.median(pilot_h[nearest.reshape(-1, near)], axis=1), rho_delta)
+    pilot_level = _level(_nearest_median(pilot_tree, pilot_h, pilots.centres), rho_delta)
     fits, halved = [], 0
     for level in np.unique(pilot_level):
         # The points that jets of this rung can reach: those of the pilots within the rung's
@@ -145,8 +143,7 @@ def fit_jets(
         cells, counts, spread = group_means(
             subset, cell_labels(subset_feet, _cell(level, rho_delta))
         )
-        _, nearest = pilot_tree.query(cells, k=near, workers=-1)
-        radius = np.median(pilot_h[nearest.reshape(cells.shape[0], near)], axis=1)
+        radius = _nearest_median(pilot_tree, pilot_h, cells)
         rows = np.flatnonzero(_level(radius, rho_delta) == level)
         if rows.size == 0:
             continue
@@ -198,14 +195,37 @@ def _jets(fit, note: str) -> Jets:
     """A Jets of the output of `fit_rows`."""
     centres, frames, coefficients, radii, _, _ = fit
     return Jets(
-        centres=centres,
-        frames=frames,
-        coefficients=coefficients,
-        radii=radii,
-        curvature=_largest_curvature(coefficients),
-        support=float(np.median(radii)),
-        notes=(note,),
+        centres=centres, frames=frames, coefficients=coefficients, radii=radii, notes=(note,)
     )
+
+
+def select_jets(jets: Jets, rows) -> Jets:
+    """The jets of `rows` (a mask or indices)."""
+    return replace(
+        jets,
+        centres=jets.centres[rows],
+        frames=jets.frames[rows],
+        coefficients=jets.coefficients[rows],
+        radii=jets.radii[rows],
+    )
+
+
+def concatenate_jets(parts: list[Jets]) -> Jets:
+    """One Jets of several, in order; the notes are the first part's."""
+    return Jets(
+        centres=np.concatenate([j.centres for j in parts]),
+        frames=np.concatenate([j.frames for j in parts]),
+        coefficients=np.concatenate([j.coefficients for j in parts]),
+        radii=np.concatenate([j.radii for j in parts]),
+        notes=parts[0].notes,
+    )
+
+
+def _nearest_median(tree, values: np.ndarray, positions: np.ndarray) -> np.ndarray:
+    """(M,) median of `values` (P,) over the 8 points of `tree` nearest each position."""
+    k = min(8, values.size)
+    _, nearest = tree.query(positions, k=k, workers=-1)
+    return np.median(values[nearest.reshape(-1, k)], axis=1)
 
 
 def orient_jets(jets: Jets, centroids, normals) -> Jets:
@@ -280,9 +300,7 @@ def _pilot_fits(points, feet, sigma, rho_delta):
     # The planes' noise holds what curvature their neighbourhoods had; the pilots' residuals
     # do not, and on a detailed object they are the smaller, truer measure. Taken over the
     # 8 nearest pilots, so that it stays local (and tiles see the same).
-    near = min(8, cells.shape[0])
-    _, nearest = build_tree(pilots.centres).query(pilots.centres, k=near, workers=-1)
-    residual = np.median(fit[5][nearest.reshape(-1, near)], axis=1)
+    residual = _nearest_median(build_tree(pilots.centres), fit[5], pilots.centres)
     sigma = np.minimum(sigma, np.sqrt(residual))
     density = fit[4] / (np.pi * pilots.radii**2)
     extent = float(np.ptp(points, axis=0).max())
@@ -301,11 +319,3 @@ def _pilot_fits(points, feet, sigma, rho_delta):
         "rho_delta"
     )
     return pilots, h, pilot_of, note
-
-
-def _largest_curvature(coefficients: np.ndarray) -> np.ndarray:
-    """(J,) largest absolute eigenvalue of each jet's Hessian [[2 a3, a4], [a4, 2 a5]]."""
-    a3, a4, a5 = coefficients[:, 3], coefficients[:, 4], coefficients[:, 5]
-    mean = a3 + a5
-    spread = np.sqrt((a3 - a5) ** 2 + a4**2)
-    return np.abs(mean) + spread

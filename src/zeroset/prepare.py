@@ -20,7 +20,6 @@ __all__ = [
     "CHUNK_POINTS",
     "Reduction",
     "cell_labels",
-    "cell_means",
     "group_means",
     "crop",
     "drop_outliers",
@@ -295,19 +294,6 @@ class _VoxelChoice:
         return self.rows[order], {name: c[order] for name, c in self.columns.items()}
 
 
-def cell_means(
-    points: np.ndarray, cell_size: float, *others: np.ndarray, weights=None, spreads=None
-) -> tuple[np.ndarray, ...]:
-    """Replace the points in each occupied cubic cell by their (weighted) mean.
-
-    Averaging evens out the density (one point per cell, however many the scanner put
-    there) and the noise (the mean of m points scatters sqrt(m) times less) before the
-    tangent planes are fitted. `group_means` of `cell_labels`; see there for the rest.
-    """
-    return group_means(points, cell_labels(points, cell_size), *others, weights=weights,
-                       spreads=spreads)
-
-
 def cell_labels(points: np.ndarray, cell_size: float) -> np.ndarray:
     """(N,) int64 cubic cell of every point, numbered 0, 1, ... in cell order.
 
@@ -319,9 +305,12 @@ def cell_labels(points: np.ndarray, cell_size: float) -> np.ndarray:
 
 
 def group_means(
-    points: np.ndarray, labels: np.ndarray, *others: np.ndarray, weights=None, spreads=None
+    points: np.ndarray, labels: np.ndarray, *others: np.ndarray
 ) -> tuple[np.ndarray, ...]:
-    """Replace the points of each group by their (weighted) mean, keeping the group's spread.
+    """Replace the points of each group by their mean, keeping the group's spread.
+
+    Averaging evens out the density (one point per group, however many the scanner put
+    there) and the noise (the mean of m points scatters sqrt(m) times less).
 
     On a curved surface the mean of a group lies off the surface by half the curvature
     times the group's spread; a fit that knows the spread can take it out (`zeroset.jets`).
@@ -334,31 +323,25 @@ def group_means(
         (`cell_labels` makes such labels).
     *others : (N, ...) float64
         Per-point arrays (e.g. viewpoints) to average the same way.
-    weights : (N,) float64, optional
-        Weight of every point (e.g. the points an earlier average stands for); 1 by default.
-    spreads : (N, 3, 3) float64, optional
-        Covariance of what each point stands for (an earlier group's spread); 0 by default.
 
     Returns
     -------
     tuple of arrays
-        The (M, 3) group means of `points`, the (M,) summed weights, the (M, 3, 3)
-        weighted covariance of each group (in squared data units), then the means of each
-        of `others`.
+        The (M, 3) group means of `points`, the (M,) float64 point counts, the (M, 3, 3)
+        covariance of each group (in squared data units), then the means of each of
+        `others`.
     """
-    weights = np.ones(points.shape[0]) if weights is None else np.asarray(weights, np.float64)
-    total = np.bincount(labels, weights=weights)
+    total = np.bincount(labels).astype(np.float64)
 
     def mean(values):
-        return np.bincount(labels, weights=values * weights) / total
+        return np.bincount(labels, weights=values) / total
 
     means = np.stack([mean(points[:, d]) for d in range(3)], axis=1)
     x = points - means[labels]
     spread = np.empty((total.size, 3, 3))
     for a in range(3):
         for b in range(a, 3):
-            moment = x[:, a] * x[:, b] + (0.0 if spreads is None else spreads[:, a, b])
-            spread[:, a, b] = spread[:, b, a] = mean(moment)
+            spread[:, a, b] = spread[:, b, a] = mean(x[:, a] * x[:, b])
     averaged = (
         np.stack([mean(array[:, d]) for d in range(array.shape[1])], axis=1) for array in others
     )

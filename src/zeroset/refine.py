@@ -15,10 +15,10 @@ import numpy as np
 
 from .jets import evaluate_jets
 from .neighbours import build_tree
-from .topology import face_area_vectors
+from .topology import face_area_vectors, undirected_edges
 from .types import Jets, Mesh
 
-__all__ = ["project_to_surface", "refine_mesh", "split_edges", "unique_edges"]
+__all__ = ["project_to_surface", "refine_mesh", "split_edges"]
 
 #: Newton steps per projection.
 PROJECTION_STEPS = 2
@@ -81,7 +81,7 @@ def split_edges(mesh: Mesh, marked: np.ndarray) -> Mesh:
     ----------
     mesh : Mesh
     marked : (E,) bool
-        One per edge of `unique_edges(mesh.faces)`.
+        One per edge of `zeroset.topology.undirected_edges(mesh.faces)`.
 
     Returns
     -------
@@ -89,7 +89,7 @@ def split_edges(mesh: Mesh, marked: np.ndarray) -> Mesh:
         The old vertices first, then one per marked edge in edge order.
     """
     faces = mesh.faces
-    edges, corner_edge = unique_edges(faces)
+    edges, corner_edge, _ = undirected_edges(faces)
     middle = np.full(edges.shape[0], -1, dtype=np.int64)
     middle[marked] = mesh.n_vertices + np.arange(np.count_nonzero(marked))
     vertices = np.concatenate(
@@ -123,14 +123,6 @@ def split_edges(mesh: Mesh, marked: np.ndarray) -> Mesh:
     return Mesh(vertices=vertices, faces=np.concatenate(pieces))
 
 
-def unique_edges(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The (E, 2) edges of `faces`, lower index first, and (F, 3) the edge from corner i to i+1."""
-    ends = np.sort(np.stack([faces, np.roll(faces, -1, axis=1)], axis=2).reshape(-1, 2), axis=1)
-    span = int(faces.max(initial=0)) + 1
-    keys, index = np.unique(ends[:, 0] * span + ends[:, 1], return_inverse=True)
-    return np.stack([keys // span, keys % span], axis=1), index.reshape(faces.shape)
-
-
 def refine_mesh(mesh: Mesh, jets: Jets, *, noise: float, levels: int | None = None):
     """Project the vertices, then split and project the edges whose chords sag too far.
 
@@ -159,7 +151,7 @@ def refine_mesh(mesh: Mesh, jets: Jets, *, noise: float, levels: int | None = No
     rounds, split = 0, 0
     tree = build_tree(jets.centres)
     for _ in range(MAX_LEVELS if levels is None else levels):
-        edges, _ = unique_edges(mesh.faces)
+        edges = undirected_edges(mesh.faces)[0]
         if levels is None:
             ends = mesh.vertices[edges]
             length = np.linalg.norm(ends[:, 0] - ends[:, 1], axis=1)

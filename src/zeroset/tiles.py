@@ -14,7 +14,7 @@ import logging
 import math
 import resource
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -24,7 +24,7 @@ from ._validate import as_points
 from .config import ReconstructionConfig
 from .contour import keyed_marching_cubes
 from .errors import InputError, ReconstructionError
-from .jets import REACH
+from .jets import REACH, concatenate_jets, select_jets
 from .neighbours import spatial_order
 from .pipeline import (
     choose_parameters,
@@ -555,7 +555,7 @@ def _contour_tile(fit: dict | None, flips: dict, parameters: Parameters) -> dict
     if jets is not None:
         lo, hi = fit["tile"].owned
         cube = np.floor(jets.centres / parameters.cube_size)
-        jets = _select_jets(jets, np.all((cube >= lo) & (cube < hi), axis=1))
+        jets = select_jets(jets, np.all((cube >= lo) & (cube < hi), axis=1))
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     return {
         **empty,
@@ -569,33 +569,10 @@ def _contour_tile(fit: dict | None, flips: dict, parameters: Parameters) -> dict
     }
 
 
-def _select_jets(jets: Jets, rows) -> Jets:
-    """The jets of `rows` (a mask or indices), the other fields kept."""
-    return replace(
-        jets,
-        centres=jets.centres[rows],
-        frames=jets.frames[rows],
-        coefficients=jets.coefficients[rows],
-        radii=jets.radii[rows],
-        curvature=jets.curvature[rows],
-    )
-
-
 def _owned_jets(pieces) -> Jets | None:
     """The union of the jets each tile owns (those centred in its cubes), or None."""
     owned = [p["jets"] for p in pieces if p.get("jets") is not None]
-    if not owned:
-        return None
-    radii = np.concatenate([j.radii for j in owned])
-    return Jets(
-        centres=np.concatenate([j.centres for j in owned]),
-        frames=np.concatenate([j.frames for j in owned]),
-        coefficients=np.concatenate([j.coefficients for j in owned]),
-        radii=radii,
-        curvature=np.concatenate([j.curvature for j in owned]),
-        support=float(np.median(radii)),
-        notes=owned[0].notes,
-    )
+    return concatenate_jets(owned) if owned else None
 
 
 def _weld(pieces) -> Mesh:

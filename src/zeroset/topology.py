@@ -22,6 +22,7 @@ __all__ = [
     "face_components",
     "is_consistently_oriented",
     "is_edge_manifold",
+    "undirected_edges",
     "signed_volume",
 ]
 
@@ -33,11 +34,18 @@ def half_edges(faces: np.ndarray) -> np.ndarray:
 
 def edge_face_counts(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Return the unique undirected edges (E, 2) and how many faces hold each (E,)."""
+    edges, _, counts = undirected_edges(faces)
+    return edges, counts
+
+
+def undirected_edges(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Return the unique undirected edges (E, 2), lower index first, the edge of each
+    half-edge (F, 3) (corner i to corner i + 1 of each face), and each edge's face count (E,)."""
     half = np.sort(half_edges(faces), axis=1)
     edge_of_half, counts = edge_ids(faces, int(faces.max(initial=-1)) + 1)
     edges = np.zeros((counts.size, 2), dtype=np.int64)
     edges[edge_of_half] = half
-    return edges, counts
+    return edges, edge_of_half.reshape(faces.shape), counts
 
 
 def edge_ids(faces: np.ndarray, n_vertices: int) -> tuple[np.ndarray, np.ndarray]:

@@ -137,8 +137,8 @@ class Jets(_Frozen):
     """Oriented quadric height fits (jets) whose blend is the surface (`zeroset.jets`).
 
     Jet j is the height function ``h(u, v) = a0 + a1 u + a2 v + a3 u^2 + a4 u v + a5 v^2``
-    over the frame at ``centres[j]`` whose rows are e1, e2 and the normal n: a point x has
-    ``u = (x - c) . e1``, ``v = (x - c) . e2`` and height ``w = (x - c) . n``.
+    plus a quartic over the frame at ``centres[j]`` whose rows are e1, e2 and the normal n:
+    a point x has ``u = (x - c) . e1``, ``v = (x - c) . e2`` and height ``w = (x - c) . n``.
 
     Attributes
     ----------
@@ -146,14 +146,11 @@ class Jets(_Frozen):
         Weighted centroid of each jet's support.
     frames : (J, 3, 3) float64
         Rows e1, e2, n; n is oriented like the tangent planes.
-    coefficients : (J, 6) float64
-        a0 ... a5, in data units.
+    coefficients : (J, 10) float64
+        a0 ... a5, in data units, then the quartic's k1, k2, cos t, sin t
+        (`zeroset._kernels.jets.COEFFICIENTS`).
     radii : (J,) float64
         Support radius of each jet, in data units.
-    curvature : (J,) float64
-        Largest absolute principal curvature of each jet, in 1 / data units.
-    support : float
-        Median support radius.
     notes : tuple of str
         How the supports were chosen.
     """
@@ -162,9 +159,19 @@ class Jets(_Frozen):
     frames: np.ndarray
     coefficients: np.ndarray
     radii: np.ndarray
-    curvature: np.ndarray
-    support: float
     notes: tuple[str, ...] = field(default=())
+
+    @property
+    def curvature(self) -> np.ndarray:
+        """(J,) largest absolute principal curvature, in 1 / data units: the largest
+        absolute eigenvalue of the Hessian [[2 a3, a4], [a4, 2 a5]]."""
+        a3, a4, a5 = self.coefficients[:, 3], self.coefficients[:, 4], self.coefficients[:, 5]
+        return np.abs(a3 + a5) + np.sqrt((a3 - a5) ** 2 + a4**2)
+
+    @property
+    def support(self) -> float:
+        """Median support radius, in data units."""
+        return float(np.median(self.radii))
 
 
 @dataclass(frozen=True, eq=False)
