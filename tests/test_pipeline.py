@@ -155,6 +155,7 @@ def test_every_stage_is_timed(pipe):
         "local fits",
         "signed distance",
         "contour",
+        "rim",
         "refine",
     }
     assert all(seconds >= 0 for seconds in result.timings.values())

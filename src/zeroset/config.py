@@ -4,12 +4,14 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field, fields, replace
 
-__all__ = ["CONTOURS", "SURFACES", "ReconstructionConfig"]
+__all__ = ["CONTOURS", "RIMS", "SURFACES", "ReconstructionConfig"]
 
 #: The contouring methods of phase 1.
 CONTOURS = ("marching", "cubes")
 #: The surface functions of phase 1: blended jets, or Hoppe's nearest tangent plane.
 SURFACES = ("jets", "planes")
+#: Where open boundaries lie: cut at the edge of the data, or at whole lattice cubes.
+RIMS = ("data", "cubes")
 
 
 def _opt(default, help: str, **extra):
@@ -68,6 +70,12 @@ class ReconstructionConfig:
         None,
         "split every triangle edge this many times (default: split where a chord sags, jets only)",
     )
+    rim: str = _opt(
+        "data",
+        "open boundaries: data (cut where the data stop, within a fraction of the spacing) or "
+        "cubes (whole cubes whose corners lie within reach of the data, as in Hoppe's method)",
+        choices=RIMS,
+    )
     min_component_faces: int = _opt(20, "drop mesh components with fewer faces")
     max_hole_edges: int = _opt(6, "close boundary loops of at most this many edges (0: none)")
     c_rep: float | None = _opt(
@@ -83,6 +91,8 @@ class ReconstructionConfig:
             raise ValueError(f"contour must be one of {CONTOURS}; got {self.contour!r}")
         if self.surface not in SURFACES:
             raise ValueError(f"surface must be one of {SURFACES}; got {self.surface!r}")
+        if self.rim not in RIMS:
+            raise ValueError(f"rim must be one of {RIMS}; got {self.rim!r}")
         if self.fit_support is not None and not self.fit_support > 0:
             raise ValueError(f"fit_support must be positive; got {self.fit_support!r}")
         if self.refine_levels is not None and not 0 <= self.refine_levels <= 4:

@@ -43,6 +43,10 @@ BRIDGE_LENGTH = 3.5
 BRIDGE_REACH = 1.25
 #: Neighbours searched around a point whose nearest ones leave directions empty.
 EDGE_K = 256
+#: Least cosine between a chord and the side of its first point away from its
+#: neighbours (within about 30 degrees): chords across a gap leave that way, chords
+#: along an open end, or across a round hole off its centre, do not.
+CROSSING = 0.85
 
 
 def sector_distances(points, indices, distances) -> tuple[np.ndarray, np.ndarray]:
@@ -141,7 +145,9 @@ def gap_bridges(points, sectors, *, rho_delta: float, tree=None) -> np.ndarray:
     distance counts the surface as defined within ``BRIDGE_REACH rho_delta`` of them.
     Chords are straight: a round hole keeps its centre, which only chords longer than the
     limit cross, so holes wider than about ``BRIDGE_LENGTH rho_delta`` stay open, as do
-    open ends (nothing lies beyond).
+    open ends (nothing lies beyond). A chord must leave its first point on the side away
+    from that point's neighbours (cosine at least ``CROSSING``): it crosses the gap, and
+    does not run along the edge of an open end.
 
     Parameters
     ----------
@@ -168,6 +174,16 @@ def gap_bridges(points, sectors, *, rho_delta: float, tree=None) -> np.ndarray:
     rows, direction = np.nonzero(gap)
     start = points[edge[rows]]
     end = points[indices[rows, column[rows, direction]]]
+    # The side of each edge point away from its neighbours within rho_delta: a chord
+    # across a gap leaves that way; one along the edge of the data does not.
+    close = distances <= rho_delta
+    centre = np.einsum("ij,ijk->ik", close, points[np.where(close, indices, 0)])
+    away = points[edge] - centre / close.sum(axis=1)[:, None]
+    chord = end - start
+    leaves = np.einsum("ij,ij->i", chord, away[rows]) >= CROSSING * np.linalg.norm(
+        chord, axis=1
+    ) * np.linalg.norm(away[rows], axis=1)
+    rows, direction, start, end = rows[leaves], direction[leaves], start[leaves], end[leaves]
     # Each chord is cut into `steps` pieces; its steps - 1 inner cut points are bridges.
     steps = np.ceil(length[rows, direction] / (0.5 * rho_delta)).astype(np.int64)
     inner = steps - 1

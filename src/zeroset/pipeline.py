@@ -23,6 +23,7 @@ from .parameters import estimate_parameters
 from .prepare import cell_labels, crop, drop_outliers, group_means, reduce_chunks
 from .refine import refine_mesh
 from .repair import fill_small_holes, remove_small_components, split_nonmanifold_vertices
+from .rim import trim_to_data
 from .types import DistanceField, Jets, Mesh, Orientation, Parameters, TangentPlanes
 
 __all__ = ["Reconstruction", "reconstruct"]
@@ -37,10 +38,12 @@ STAGES = (
     "local fits",
     "signed distance",
     "contour",
+    "rim",
     "refine",
 )
-#: Stages that run only for the blended-jets surface.
+#: Stages that run only for the blended-jets surface, and only for rims at the data.
 JET_STAGES = ("local fits", "refine")
+RIM_STAGES = ("rim",)
 OPTIMIZE_STAGE = "optimize"
 #: Nearest neighbours found per point: enough to reach across the gap between scan lines.
 WIDE_K = 32
@@ -154,7 +157,12 @@ def reconstruct(
         if viewpoints.shape != points.shape:
             raise InputError(f"viewpoints must match points {points.shape}; got {viewpoints.shape}")
     stats: dict = {"input_points": points.shape[0]}
-    names = tuple(s for s in STAGES if config.surface == "jets" or s not in JET_STAGES)
+    names = tuple(
+        s
+        for s in STAGES
+        if (config.surface == "jets" or s not in JET_STAGES)
+        and (config.rim == "data" or s not in RIM_STAGES)
+    )
     stages = Stages(names + ((OPTIMIZE_STAGE,) if optimize else ()), show=progress)
     try:
         with stages.stage("prepare"):
@@ -171,8 +179,15 @@ def reconstruct(
             parameters = choose_parameters(local, config)
         fitted = fit_planes(local, viewpoints, parameters, config, stats, stages)
         jets = oriented_jets(fitted, fitted.orientation.normals)
-        field_ = distance_field(
-            local, fitted, fitted.orientation.normals, parameters, stats, stages, jets=jets
+        field_, bridges = distance_field(
+            local,
+            fitted,
+            fitted.orientation.normals,
+            parameters,
+            stats,
+            stages,
+            rim=config.rim,
+            jets=jets,
         )
         with stages.stage("contour"):
             if config.contour == "cubes":
@@ -182,6 +197,10 @@ def reconstruct(
             else:
                 mesh = marching_cubes(field_)
             mesh = repair(mesh, parameters, config, stats)
+        if config.rim == "data":
+            with stages.stage("rim"):
+                support, reach = data_support(fitted, bridges, parameters)
+                mesh = trim_rim(mesh, support, reach, parameters, config, stats)
         if jets is not None:
             with stages.stage("refine"):
                 mesh, counts = refine_mesh(
@@ -348,10 +367,14 @@ def oriented_jets(fitted: FittedPlanes, normals: np.ndarray) -> Jets | None:
 
 
 def distance_field(
-    local, fitted, normals, parameters, stats, stages, *, jets: Jets | None = None
-) -> DistanceField:
+    local, fitted, normals, parameters, stats, stages, *, rim: str, jets: Jets | None = None
+) -> tuple[DistanceField, np.ndarray]:
     """Stage "signed distance": the field of the planes of `fitted` turned by `normals`,
-    valued by the oriented `jets` where they are given."""
+    valued by the oriented `jets` where they are given, and the gap bridges (B, 3).
+
+    For ``rim="data"`` the field reaches one cube further than the points' radii, so that
+    the cubes cover the edge of the data wherever the lattice lies; the rim is then cut
+    back to that edge (`trim_rim`)."""
     with stages.stage("signed distance"):
         bridges = gap_bridges(fitted.points, fitted.sectors, rho_delta=parameters.rho_delta)
         stats["gap_bridge_points"] = bridges.shape[0]
@@ -360,14 +383,21 @@ def distance_field(
             fitted.planes.centroids,
             normals,
             cube_size=parameters.cube_size,
-            radius=fitted.radii,
+            radius=fitted.radii + (parameters.cube_size if rim == "data" else 0.0),
             bridges=bridges,
             bridge_reach=BRIDGE_REACH * parameters.rho_delta,
             surface=None if jets is None else (lambda x: evaluate_jets(jets, x)[0]),
         )
         stats["grid_vertices"] = int(field_.values.size)
         stats["undefined_grid_vertices"] = int(np.count_nonzero(np.isnan(field_.values)))
-    return field_
+    return field_, bridges
+
+
+def data_support(fitted: FittedPlanes, bridges: np.ndarray, parameters: Parameters):
+    """Where the data are: the points (N + B, 3) of `fitted` and the gap `bridges`, and the
+    radius (N + B,) each reaches."""
+    reach = np.full(bridges.shape[0], BRIDGE_REACH * parameters.rho_delta)
+    return np.concatenate([fitted.points, bridges]), np.concatenate([fitted.radii, reach])
 
 
 def repair(mesh: Mesh, parameters, config, stats) -> Mesh:
@@ -382,6 +412,21 @@ def repair(mesh: Mesh, parameters, config, stats) -> Mesh:
             f"no surface: no cube of size {parameters.cube_size:.4g} has eight defined "
             f"corners with a sign change; rho_delta={parameters.rho_delta:.4g} may be "
             "too small for the point spacing"
+        )
+    return mesh
+
+
+def trim_rim(mesh: Mesh, points, radii, parameters, config, stats) -> Mesh:
+    """Stage "rim": cut the boundaries back to the edge of the data (`data_support`);
+    counts to `stats`."""
+    mesh, counts = trim_to_data(mesh, points, radii, cube_size=parameters.cube_size)
+    stats.update(counts)
+    mesh, dropped = remove_small_components(mesh, config.min_component_faces)
+    stats["small_components_dropped"] += dropped
+    if mesh.n_faces == 0:
+        raise ReconstructionError(
+            "no surface: the points within reach of every vertex sample a curve or too "
+            f"few directions (rho_delta={parameters.rho_delta:.4g})"
         )
     return mesh
 

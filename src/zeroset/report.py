@@ -186,6 +186,7 @@ def format_report(report: dict) -> str:
         f"{stats['vertices']:,} vertices, {stats['faces']:,} triangles, "
         f"{stats['boundary_loops']} boundary loop(s), {stats['mesh_components']} component(s), "
         f"Euler characteristic {stats['euler_characteristic']}",
+        _rim_line(stats),
         f"repairs     {stats['small_holes_filled']} small hole(s) closed, "
         f"{stats['small_components_dropped']} tiny component(s) dropped, "
         f"{stats['bowtie_vertices_split']} bow-tie vertex(es) split",
@@ -213,6 +214,17 @@ def _surface_lines(surface: str, stats: dict) -> list[str]:
             f"{stats['refine_levels']} round(s) where their chords sagged"
         )
     return lines
+
+
+def _rim_line(stats: dict) -> str:
+    """Where the open boundaries were put: at the edge of the data, or at whole cubes."""
+    if "rim_edges_cut" not in stats:
+        return "rim         whole cubes whose corners lie within reach of the data"
+    return (
+        f"rim         cut where the data stop: {stats['rim_vertices_tested']:,} vertices "
+        f"tested, {stats['rim_faces_removed']:,} triangles past the data removed, "
+        f"{stats['rim_edges_cut']:,} edges cut"
+    )
 
 
 def _density_lines(stats: dict) -> list[str]:

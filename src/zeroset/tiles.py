@@ -28,11 +28,13 @@ from .jets import REACH, concatenate_jets, select_jets
 from .neighbours import spatial_order
 from .pipeline import (
     choose_parameters,
+    data_support,
     distance_field,
     fit_planes,
     mesh_stats,
     oriented_jets,
     repair,
+    trim_rim,
 )
 from .prepare import crop as inside
 from .refine import refine_mesh
@@ -223,7 +225,7 @@ def reconstruct_tiled(
 
     start = time.perf_counter()
     pieces = [
-        client.submit(_contour_tile, fit, flip, parameters, pure=False)
+        client.submit(_contour_tile, fit, flip, parameters, config.rim, pure=False)
         for fit, flip in zip(fits, flips, strict=True)
     ]
     pieces = _gather(client, pieces, "contouring", progress)
@@ -240,6 +242,15 @@ def reconstruct_tiled(
     stats["tile_grid"] = [int(c) for c in counts]
     stats["tile_components_flipped"] = sum(len(flip) for flip in flips)
     mesh = repair(_weld(pieces), parameters, config, stats)
+    if config.rim == "data":
+        mesh = trim_rim(
+            mesh,
+            np.concatenate([p["points"] for p in pieces]),
+            np.concatenate([p["radii"] for p in pieces]),
+            parameters,
+            config,
+            stats,
+        )
     jets = _owned_jets(pieces)
     if jets is not None:
         mesh, refined = refine_mesh(mesh, jets, noise=parameters.noise, levels=config.refine_levels)
@@ -517,7 +528,7 @@ def _root_signs(extremes, sign, group) -> None:
             sign[members] *= -1.0
 
 
-def _contour_tile(fit: dict | None, flips: dict, parameters: Parameters) -> dict:
+def _contour_tile(fit: dict | None, flips: dict, parameters: Parameters, rim: str) -> dict:
     """Contour the cubes a tile owns (a Dask task)."""
     import socket
 
@@ -534,6 +545,8 @@ def _contour_tile(fit: dict | None, flips: dict, parameters: Parameters) -> dict
         "vertices": np.zeros((0, 3)),
         "faces": np.zeros((0, 3), dtype=np.int64),
         "cube_keys": np.zeros(0, dtype=np.int64),
+        "points": np.zeros((0, 3)),
+        "radii": np.zeros(0),
         "stats": {},
         "peak_mib": peak,
         "worker": worker,
@@ -546,12 +559,22 @@ def _contour_tile(fit: dict | None, flips: dict, parameters: Parameters) -> dict
         sign[component] = flip
     normals = fitted.orientation.normals * sign[fitted.orientation.component][:, None]
     jets = oriented_jets(fitted, normals)
-    field_ = distance_field(
-        fit["local"], fitted, normals, parameters, stats, Stages((), show=False), jets=jets
+    field_, bridges = distance_field(
+        fit["local"],
+        fitted,
+        normals,
+        parameters,
+        stats,
+        Stages((), show=False),
+        rim=rim,
+        jets=jets,
     )
     edge_keys, vertices, faces, cube_keys = keyed_marching_cubes(field_, owned=fit["tile"].owned)
     for key in ("jets", "fit_support", "fit_notes"):  # the client counts the jets owned
         stats.pop(key, None)
+    support, radii = data_support(fitted, bridges, parameters)
+    box_lo, box_hi = _owned_box(fit["tile"], parameters.cube_size)
+    owned = np.all((support >= box_lo) & (support < box_hi), axis=1)
     if jets is not None:
         lo, hi = fit["tile"].owned
         cube = np.floor(jets.centres / parameters.cube_size)
@@ -563,6 +586,8 @@ def _contour_tile(fit: dict | None, flips: dict, parameters: Parameters) -> dict
         "vertices": vertices,
         "faces": faces,
         "cube_keys": cube_keys,
+        "points": support[owned],
+        "radii": radii[owned],
         "stats": stats,
         "peak_mib": peak,
         "jets": jets,

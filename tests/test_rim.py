@@ -1,0 +1,142 @@
+"""Rims where the data stop: the edge test, the cut, and open pipes end to end."""
+
+import numpy as np
+import pytest
+
+from zeroset import ReconstructionConfig, reconstruct, topology
+from zeroset.evaluate import points_to_mesh_distance
+from zeroset.rim import EDGE_OFFSET, SNAP, cut_mesh, data_edge
+from zeroset.synthetic import sample_cylinder
+from zeroset.types import Mesh
+
+
+def _grid(n: int, step: float = 1.0, jitter: float = 0.0, rng=0):
+    """Points (n*n, 3) on a square grid in z = 0, each moved by up to `jitter` steps."""
+    i, j = np.meshgrid(np.arange(n), np.arange(n), indexing="ij")
+    points = np.stack([i.ravel(), j.ravel(), np.zeros(i.size)], axis=1) * step
+    shake = np.random.default_rng(rng).uniform(-jitter, jitter, (points.shape[0], 2)) * step
+    points[:, :2] += shake
+    return points
+
+
+def _plane_mesh(n: int) -> Mesh:
+    """A triangulated unit square in z = 0, n x n quads, normals +z."""
+    vertices = _grid(n + 1, 1.0 / n)
+    k = np.arange(n * (n + 1)).reshape(n, n + 1)[:, :n].ravel()
+    quads = np.stack([k, k + n + 1, k + n + 2, k + 1], axis=1)
+    faces = np.concatenate([quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]])
+    return Mesh(vertices=vertices, faces=faces)
+
+
+def _angles(mesh: Mesh) -> np.ndarray:
+    """Smallest angle (F,) of each face, degrees."""
+    corners = mesh.vertices[mesh.faces]
+    smallest = np.full(mesh.n_faces, 180.0)
+    for i in range(3):
+        u = corners[:, (i + 1) % 3] - corners[:, i]
+        v = corners[:, (i + 2) % 3] - corners[:, i]
+        cosine = np.einsum("ij,ij->i", u, v) / np.linalg.norm(u, axis=1) / np.linalg.norm(v, axis=1)
+        smallest = np.minimum(smallest, np.degrees(np.arccos(np.clip(cosine, -1, 1))))
+    return smallest
+
+
+@pytest.mark.parametrize("direction", [(1.0, 0.0), (0.6, 0.8), (0.28, 0.96)])
+def test_cut_follows_the_zero_line_of_a_linear_function(direction):
+    mesh = _plane_mesh(24)
+    d = np.array([*direction, 0.0])
+    value = mesh.vertices @ d - 0.5 * d.sum() - 0.013  # a line across the square
+    cut, edges = cut_mesh(mesh, value)
+    assert edges > 0
+    assert topology.is_edge_manifold(cut.faces) and topology.is_consistently_oriented(cut.faces)
+    areas = topology.face_area_vectors(cut.vertices, cut.faces)
+    assert np.all(areas[:, 2] > 0.0)  # every face keeps its side up
+    # The new boundary lies on the line; the square's own sides stay where they were.
+    border = np.unique(topology.boundary_edges(cut.faces))
+    on_line = np.abs(cut.vertices[border] @ d - 0.5 * d.sum() - 0.013) <= 1e-12
+    on_square = np.any(
+        np.isclose(cut.vertices[border, :2], 0.0) | np.isclose(cut.vertices[border, :2], 1.0),
+        axis=1,
+    )
+    assert np.all(on_line | on_square) and on_line.sum() >= 20
+    assert np.all(cut.vertices @ d - 0.5 * d.sum() - 0.013 <= 1e-12)
+    # Moving vertices onto the line changes the area by less than the moved triangles'.
+    kept = 0.5 * np.linalg.norm(areas, axis=1).sum()
+    expected = np.mean(
+        np.random.default_rng(0).uniform(0, 1, (400_000, 2)) @ d[:2] <= 0.5 * d.sum() + 0.013
+    )
+    assert kept == pytest.approx(expected, abs=0.01)
+    # No sliver: a cut this close to a vertex moves the vertex instead.
+    assert _angles(cut).min() > np.degrees(np.arctan(SNAP)) / 2
+
+
+def test_cut_keeps_everything_inside_and_nothing_outside():
+    mesh = _plane_mesh(6)
+    kept, edges = cut_mesh(mesh, np.full(mesh.n_vertices, -1.0))
+    assert edges == 0 and kept.n_faces == mesh.n_faces
+    gone, _ = cut_mesh(mesh, np.full(mesh.n_vertices, 1.0))
+    assert gone.n_faces == 0
+
+
+def test_data_edge_is_zero_on_the_edge_of_evenly_spaced_points():
+    step = 0.01
+    points = _grid(60, step, jitter=0.3)
+    points = points[points[:, 0] <= 0.3]  # data for x <= 0.3
+    radii = np.full(points.shape[0], 1.6 * step)
+    x = np.array([0.3 - 2 * step, 0.3 - step, 0.3, 0.3 + step, 0.3 + 2 * step])
+    vertices = np.stack([x, np.full(x.size, 0.3), np.zeros(x.size)], axis=1)
+    normals = np.tile([0.0, 0.0, 1.0], (x.size, 1))
+    value = data_edge(points, radii, vertices, normals)
+    assert value[0] < 0.0 and value[-1] > 0.0
+    assert np.all(np.diff(value) > 0.0)  # rises across the edge
+    assert abs(value[2]) < 0.1  # about zero on it: the half disc's centroid
+    assert EDGE_OFFSET == pytest.approx(0.4244, abs=1e-4)
+
+
+def test_data_edge_counts_a_curve_of_points_as_no_surface():
+    t = np.linspace(0.0, 1.0, 400)
+    points = np.stack([t, 0.1 * np.sin(3 * t), np.zeros_like(t)], axis=1)
+    vertices = points[::40] + [0.0, 0.0, 0.0]
+    normals = np.tile([0.0, 0.0, 1.0], (vertices.shape[0], 1))
+    value = data_edge(points, np.full(t.size, 0.01), vertices, normals)
+    assert np.all(value > 0.0)
+
+
+@pytest.mark.parametrize("n", [20_000, 80_000])
+def test_open_pipe_rim_lies_at_the_data_edge_without_steps(n):
+    radius, length, noise = 0.25, 1.0, 0.002
+    sample = sample_cylinder(n, radius=radius, length=length, noise=noise, rng=1)
+    result = reconstruct(sample.points)
+    mesh = result.mesh
+    spacing = np.sqrt(2 * np.pi * radius * length / n)
+    loops = topology.boundary_loops(mesh.faces)
+    assert len(loops) == 2 and result.stats["mesh_components"] == 1
+    for loop in loops:
+        ring = mesh.vertices[np.r_[loop, loop[:1]]]
+        rim_length = np.linalg.norm(np.diff(ring, axis=0), axis=1).sum()
+        assert rim_length == pytest.approx(2 * np.pi * radius, rel=0.05)  # no saw-tooth
+        # The points were drawn up to z = 0 and z = length, then moved by the noise: the
+        # last points lie within 3 sigma of the ends, and the rim within a spacing of them.
+        z = ring[:, 2]
+        end = 0.0 if z.mean() < length / 2 else length
+        assert np.abs(z - end).max() <= spacing + 3 * noise
+    # The points at the ends lie on the mesh, give or take their noise: the rim does not
+    # stop short of them.
+    ends = sample.points[(sample.points[:, 2] < 0.02) | (sample.points[:, 2] > length - 0.02)]
+    assert points_to_mesh_distance(ends, mesh).max() <= spacing + 3 * noise
+
+
+def test_rim_of_whole_cubes_is_hoppes_and_is_not_cut():
+    n, noise = 20_000, 0.002
+    sample = sample_cylinder(n, radius=0.25, length=1.0, noise=noise, rng=1)
+    cubes = reconstruct(sample.points, rim="cubes")
+    assert "rim" not in cubes.timings and "rim_edges_cut" not in cubes.stats
+    data = reconstruct(sample.points)
+    assert data.stats["rim_edges_cut"] > 0
+    # The cubes' rim reaches well past the end of the pipe, the cut one does not.
+    reach = np.sqrt(2 * np.pi * 0.25 / n) + 3 * noise
+    assert cubes.mesh.vertices[:, 2].max() > 1.0 + reach >= data.mesh.vertices[:, 2].max()
+
+
+def test_unknown_rim_is_refused():
+    with pytest.raises(ValueError, match="rim must be one of"):
+        ReconstructionConfig(rim="edges")
