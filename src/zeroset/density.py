@@ -41,12 +41,14 @@ RANGE_BINS = 10
 BRIDGE_LENGTH = 3.5
 #: Reach of a bridge point in the undefined test, over the cloud's rho+delta.
 BRIDGE_REACH = 1.25
+#: Spacing of the bridge points along their chord, over the cloud's rho+delta.
+BRIDGE_STEP = 0.5
 #: Neighbours searched around a point whose nearest ones leave directions empty.
 EDGE_K = 256
 #: Least cosine between a chord and the side of its first point away from its
-#: neighbours (within about 30 degrees): chords across a gap leave that way, chords
+#: neighbours (within about 18 degrees): chords across a gap leave that way, chords
 #: along an open end, or across a round hole off its centre, do not.
-CROSSING = 0.85
+CROSSING = 0.95
 
 
 def sector_distances(points, indices, distances) -> tuple[np.ndarray, np.ndarray]:
@@ -141,7 +143,7 @@ def gap_bridges(points, sectors, *, rho_delta: float, tree=None) -> np.ndarray:
     bands (far down a pipe, each ring of beams is smeared by range noise into a band). A
     point at the edge of a band has a direction with no neighbour within rho_delta; where
     the nearest point in that direction lies within ``BRIDGE_LENGTH rho_delta``, the chord
-    to it crosses a gap, and points are placed along it every rho_delta / 2. The signed
+    to it crosses a gap, and points are placed along it every ``BRIDGE_STEP rho_delta``. The signed
     distance counts the surface as defined within ``BRIDGE_REACH rho_delta`` of them.
     Chords are straight: a round hole keeps its centre, which only chords longer than the
     limit cross, so holes wider than about ``BRIDGE_LENGTH rho_delta`` stay open, as do
@@ -185,7 +187,7 @@ def gap_bridges(points, sectors, *, rho_delta: float, tree=None) -> np.ndarray:
     ) * np.linalg.norm(away[rows], axis=1)
     rows, direction, start, end = rows[leaves], direction[leaves], start[leaves], end[leaves]
     # Each chord is cut into `steps` pieces; its steps - 1 inner cut points are bridges.
-    steps = np.ceil(length[rows, direction] / (0.5 * rho_delta)).astype(np.int64)
+    steps = np.ceil(length[rows, direction] / (BRIDGE_STEP * rho_delta)).astype(np.int64)
     inner = steps - 1
     chord = np.repeat(np.arange(rows.size), inner)
     first = np.cumsum(inner) - inner

@@ -11,7 +11,14 @@ from ._progress import Stages
 from ._validate import as_points, as_viewpoints
 from .config import ReconstructionConfig
 from .contour import marching_cubes, method_of_cubes
-from .density import BRIDGE_REACH, gap_bridges, point_radii, range_noise, sector_distances
+from .density import (
+    BRIDGE_REACH,
+    BRIDGE_STEP,
+    gap_bridges,
+    point_radii,
+    range_noise,
+    sector_distances,
+)
 from .distance import signed_distance
 from .errors import InputError, ReconstructionError
 from .jets import evaluate_jets, fit_jets, orient_jets
@@ -199,8 +206,9 @@ def reconstruct(
             mesh = repair(mesh, parameters, config, stats)
         if config.rim == "data":
             with stages.stage("rim"):
-                support, reach = data_support(fitted, bridges, parameters)
-                mesh = trim_rim(mesh, support, reach, parameters, config, stats)
+                mesh = trim_rim(
+                    mesh, *data_support(fitted, bridges, parameters), parameters, config, stats
+                )
         if jets is not None:
             with stages.stage("refine"):
                 mesh, counts = refine_mesh(
@@ -394,10 +402,14 @@ def distance_field(
 
 
 def data_support(fitted: FittedPlanes, bridges: np.ndarray, parameters: Parameters):
-    """Where the data are: the points (N + B, 3) of `fitted` and the gap `bridges`, and the
-    radius (N + B,) each reaches."""
-    reach = np.full(bridges.shape[0], BRIDGE_REACH * parameters.rho_delta)
-    return np.concatenate([fitted.points, bridges]), np.concatenate([fitted.radii, reach])
+    """Where the data are: the points (N + B, 3) of `fitted` and the gap `bridges`, each
+    one's radius (N + B,), and how far (N + B,) the surface reaches from it: a point's
+    radius, and for a bridge point the step between bridge points, so that a chord covers
+    a strip along itself and not the middle of a round hole off its end."""
+    n_bridges = bridges.shape[0]
+    radii = np.r_[fitted.radii, np.full(n_bridges, BRIDGE_REACH * parameters.rho_delta)]
+    reach = np.r_[fitted.radii, np.full(n_bridges, BRIDGE_STEP * parameters.rho_delta)]
+    return np.concatenate([fitted.points, bridges]), radii, reach
 
 
 def repair(mesh: Mesh, parameters, config, stats) -> Mesh:
@@ -416,10 +428,12 @@ def repair(mesh: Mesh, parameters, config, stats) -> Mesh:
     return mesh
 
 
-def trim_rim(mesh: Mesh, points, radii, parameters, config, stats) -> Mesh:
+def trim_rim(mesh: Mesh, points, radii, reach, parameters, config, stats) -> Mesh:
     """Stage "rim": cut the boundaries back to the edge of the data (`data_support`);
     counts to `stats`."""
-    mesh, counts = trim_to_data(mesh, points, radii, cube_size=parameters.cube_size)
+    mesh, counts = trim_to_data(
+        mesh, points, radii, cube_size=parameters.cube_size, reach=reach
+    )
     stats.update(counts)
     mesh, dropped = remove_small_components(mesh, config.min_component_faces)
     stats["small_components_dropped"] += dropped

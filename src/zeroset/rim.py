@@ -43,7 +43,7 @@ CROSSING_STEPS = 2
 SNAP = 0.2
 
 
-def data_edge(points, radii, vertices, normals, *, tree=None) -> np.ndarray:
+def data_edge(points, radii, vertices, normals, *, reach=None, tree=None) -> np.ndarray:
     """Signed position (V,) of each vertex across the edge of the data, in disc radii.
 
     For a vertex v with unit normal n, R is ``DISC`` times the radius of the data point
@@ -53,8 +53,8 @@ def data_edge(points, radii, vertices, normals, *, tree=None) -> np.ndarray:
     ``MIN_POINTS`` points lie within R. Where the points in the disc spread less than
     ``THIN R^2`` (variance) across their main direction in the tangent plane, they sample
     a curve, and the value is at least ``1 - variance / (THIN R^2)``. It is also at least
-    ``d / r - 1``, with d the distance to the nearest point and r that point's radius:
-    the surface reaches no further from the data than the signed distance is defined.
+    ``d / r - 1``, with d the distance to the nearest point and r its `reach`: the surface
+    reaches no further from the data than the signed distance is defined.
 
     Parameters
     ----------
@@ -63,10 +63,13 @@ def data_edge(points, radii, vertices, normals, *, tree=None) -> np.ndarray:
         Neighbourhood radius of each point (`zeroset.density.point_radii`), data units.
     vertices, normals : (V, 3) float64
         Positions and unit normals where the edge is tested.
+    reach : (N,) float64, optional
+        How far from each point the surface may reach; `radii` by default.
     tree : cKDTree, optional
         A tree over `points`, to reuse one already built.
     """
     tree = build_tree(points) if tree is None else tree
+    reach = radii if reach is None else reach
     gap, nearest = tree.query(vertices, workers=-1)
     radius = DISC * radii[nearest]
     members = tree.query_ball_point(vertices, radius, workers=-1, return_sorted=False)
@@ -88,7 +91,7 @@ def data_edge(points, radii, vertices, normals, *, tree=None) -> np.ndarray:
     narrow = np.linalg.eigvalsh(moments / inside[:, :, None])[:, 1] / radius**2
     value = np.maximum(value, 1.0 - narrow / THIN)
     # Beyond the reach of the nearest point, the surface is not defined at all.
-    value = np.maximum(value, gap / radii[nearest] - 1.0)
+    value = np.maximum(value, gap / reach[nearest] - 1.0)
     return np.where(counts >= MIN_POINTS, value, 1.0)
 
 
@@ -182,7 +185,9 @@ def cut_mesh(mesh: Mesh, value: np.ndarray, *, locate=None) -> tuple[Mesh, int]:
     return mesh, int(np.count_nonzero(crossed))
 
 
-def trim_to_data(mesh: Mesh, points, radii, *, cube_size: float) -> tuple[Mesh, dict]:
+def trim_to_data(
+    mesh: Mesh, points, radii, *, cube_size: float, reach=None
+) -> tuple[Mesh, dict]:
     """Cut the mesh back to the edge of the data around its boundaries.
 
     Vertices within ``BAND`` largest radii plus one cube of a boundary vertex are tested
@@ -199,6 +204,8 @@ def trim_to_data(mesh: Mesh, points, radii, *, cube_size: float) -> tuple[Mesh, 
         Neighbourhood radius of each point, data units.
     cube_size : float
         The lattice's cube, data units.
+    reach : (N,) float64, optional
+        How far from each point the surface may reach (`data_edge`); `radii` by default.
 
     Returns
     -------
@@ -223,7 +230,9 @@ def trim_to_data(mesh: Mesh, points, radii, *, cube_size: float) -> tuple[Mesh, 
         np.add.at(normals, mesh.faces[:, corner], area)
     normals /= np.maximum(np.linalg.norm(normals, axis=1), 1e-300)[:, None]
     value = np.full(mesh.n_vertices, -1.0)
-    value[near] = data_edge(points, radii, mesh.vertices[near], normals[near], tree=tree)
+    value[near] = data_edge(
+        points, radii, mesh.vertices[near], normals[near], reach=reach, tree=tree
+    )
     outside = (value[mesh.faces] >= 0.0).all(axis=1)
 
     def locate(inner, outer, t):
@@ -235,7 +244,7 @@ def trim_to_data(mesh: Mesh, points, radii, *, cube_size: float) -> tuple[Mesh, 
             )
             normal = (1.0 - t)[:, None] * normals[inner] + t[:, None] * normals[outer]
             normal /= np.maximum(np.linalg.norm(normal, axis=1), 1e-300)[:, None]
-            f = data_edge(points, radii, position, normal, tree=tree)
+            f = data_edge(points, radii, position, normal, reach=reach, tree=tree)
             below = f < 0.0
             lo, f_lo = np.where(below, t, lo), np.where(below, f, f_lo)
             hi, f_hi = np.where(below, hi, t), np.where(below, f_hi, f)

@@ -247,6 +247,7 @@ def reconstruct_tiled(
             mesh,
             np.concatenate([p["points"] for p in pieces]),
             np.concatenate([p["radii"] for p in pieces]),
+            np.concatenate([p["reach"] for p in pieces]),
             parameters,
             config,
             stats,
@@ -547,6 +548,7 @@ def _contour_tile(fit: dict | None, flips: dict, parameters: Parameters, rim: st
         "cube_keys": np.zeros(0, dtype=np.int64),
         "points": np.zeros((0, 3)),
         "radii": np.zeros(0),
+        "reach": np.zeros(0),
         "stats": {},
         "peak_mib": peak,
         "worker": worker,
@@ -572,7 +574,7 @@ def _contour_tile(fit: dict | None, flips: dict, parameters: Parameters, rim: st
     edge_keys, vertices, faces, cube_keys = keyed_marching_cubes(field_, owned=fit["tile"].owned)
     for key in ("jets", "fit_support", "fit_notes"):  # the client counts the jets owned
         stats.pop(key, None)
-    support, radii = data_support(fitted, bridges, parameters)
+    support, radii, reach = data_support(fitted, bridges, parameters)
     box_lo, box_hi = _owned_box(fit["tile"], parameters.cube_size)
     owned = np.all((support >= box_lo) & (support < box_hi), axis=1)
     if jets is not None:
@@ -588,6 +590,7 @@ def _contour_tile(fit: dict | None, flips: dict, parameters: Parameters, rim: st
         "cube_keys": cube_keys,
         "points": support[owned],
         "radii": radii[owned],
+        "reach": reach[owned],
         "stats": stats,
         "peak_mib": peak,
         "jets": jets,
