@@ -136,7 +136,7 @@ def test_hole_in_a_pipe_wall_stays_round_and_near_its_edge():
     hole = np.linalg.norm(mesh.vertices[min(loops, key=len)] - centre, axis=1)
     spacing = np.sqrt(2 * np.pi * radius / n)
     # The rim test assumes a straight edge: a hole of 2 rho+delta radius comes out
-    # 2.1 spacings smaller on average (docs/method.md, Known limits), never past the data.
+    # 2.2 spacings smaller on average (docs/method.md, Known limits), never past the data.
     assert edge - 2.5 * spacing <= hole.mean() <= edge
     assert hole.min() >= edge / 3
 

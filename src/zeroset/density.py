@@ -46,9 +46,9 @@ BRIDGE_STEP = 0.5
 #: Neighbours searched around a point whose nearest ones leave directions empty.
 EDGE_K = 256
 #: Least cosine between a chord and the side of its first point away from its
-#: neighbours (within about 18 degrees): chords across a gap leave that way, chords
+#: neighbours (within about 30 degrees): chords across a gap leave that way, chords
 #: along an open end, or across a round hole off its centre, do not.
-CROSSING = 0.95
+CROSSING = 0.85
 
 
 def sector_distances(points, indices, distances) -> tuple[np.ndarray, np.ndarray]:
