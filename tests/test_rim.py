@@ -5,6 +5,7 @@ import pytest
 
 from zeroset import ReconstructionConfig, reconstruct, topology
 from zeroset.evaluate import points_to_mesh_distance
+from zeroset.repair import fill_small_holes
 from zeroset.rim import EDGE_OFFSET, SNAP, cut_mesh, data_edge
 from zeroset.synthetic import sample_cylinder
 from zeroset.types import Mesh
@@ -156,3 +157,18 @@ def test_rim_of_whole_cubes_is_hoppes_and_is_not_cut():
 def test_unknown_rim_is_refused():
     with pytest.raises(ValueError, match="rim must be one of"):
         ReconstructionConfig(rim="edges")
+
+
+@pytest.mark.parametrize("width, filled", [(0.5, 1), (0.1, 0)])
+def test_holes_narrower_than_the_limit_are_closed(width, filled):
+    mesh = _plane_mesh(12)
+    centres = mesh.vertices[mesh.faces].mean(axis=1)
+    keep = np.linalg.norm(centres[:, :2] - 0.5, axis=1) > 0.13  # a hole 0.3 across
+    holed = Mesh(vertices=mesh.vertices, faces=mesh.faces[keep])
+    loops = topology.boundary_loops(holed.faces)
+    assert len(loops) == 2 and max(len(loop) for loop in loops) > 6
+    closed, count = fill_small_holes(holed, 6, max_width=width)
+    assert count == filled
+    assert len(topology.boundary_loops(closed.faces)) == 2 - filled
+    assert topology.is_edge_manifold(closed.faces)
+    assert topology.is_consistently_oriented(closed.faces)

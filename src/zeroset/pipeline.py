@@ -54,6 +54,9 @@ RIM_STAGES = ("rim",)
 OPTIMIZE_STAGE = "optimize"
 #: Nearest neighbours found per point: enough to reach across the gap between scan lines.
 WIDE_K = 32
+#: Widest hole, over rho+delta, that the rim cut may not open: the signed distance is
+#: defined within rho+delta of the data on either side, so Hoppe's rule closes it too.
+RIM_HOLE_WIDTH = 2.0
 #: Largest coordinate magnitude and smallest extent accepted: squared distances between
 #: points then stay far from float64's overflow (1.8e308) and underflow (2.2e-308).
 MAX_COORDINATE = 1e100
@@ -435,6 +438,11 @@ def trim_rim(mesh: Mesh, points, radii, reach, parameters, config, stats) -> Mes
         mesh, points, radii, cube_size=parameters.cube_size, reach=reach
     )
     stats.update(counts)
+    if config.max_hole_edges > 0:  # holes Hoppe's rule could not resolve either stay shut
+        mesh, filled = fill_small_holes(
+            mesh, config.max_hole_edges, max_width=RIM_HOLE_WIDTH * parameters.rho_delta
+        )
+        stats["small_holes_filled"] += filled
     mesh, dropped = remove_small_components(mesh, config.min_component_faces)
     stats["small_components_dropped"] += dropped
     if mesh.n_faces == 0:

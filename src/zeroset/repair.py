@@ -60,11 +60,25 @@ def split_nonmanifold_vertices(mesh: Mesh) -> tuple[Mesh, int]:
     return Mesh(vertices=vertices, faces=new_faces), int(added)
 
 
-def fill_small_holes(mesh: Mesh, max_edges: int) -> tuple[Mesh, int]:
-    """Close boundary loops of at most `max_edges` edges with a fan of triangles.
+#: Longest loop whose width is measured (pairwise distances); longer loops are not small.
+WIDTH_EDGES = 64
+
+
+def _width(mesh: Mesh, loop: np.ndarray) -> float:
+    """Largest distance between two vertices of `loop`."""
+    ring = mesh.vertices[loop]
+    return float(np.linalg.norm(ring[:, None] - ring[None], axis=2).max())
+
+
+def fill_small_holes(
+    mesh: Mesh, max_edges: int, *, max_width: float | None = None
+) -> tuple[Mesh, int]:
+    """Close boundary loops of at most `max_edges` edges, or at most `max_width` across,
+    with a fan of triangles.
 
     A gap of a few edges is a cube that contouring skipped, not a hole in the object:
     a hole narrower than rho+delta cannot be resolved from the data (thesis 3.2.1, 3.4.6).
+    The width of a loop is the largest distance between two of its vertices.
     The fan's apex is chosen so that no new edge duplicates an existing one; a loop with
     no such apex is left open. The mesh must be vertex-manifold.
 
@@ -79,7 +93,9 @@ def fill_small_holes(mesh: Mesh, max_edges: int) -> tuple[Mesh, int]:
     new_faces = []
     filled = 0
     for loop in boundary_loops(mesh.faces):
-        if len(loop) > max_edges:
+        if len(loop) > max_edges and not (
+            max_width is not None and len(loop) <= WIDTH_EDGES and _width(mesh, loop) <= max_width
+        ):
             continue
         loop = loop.tolist()
         for shift in range(len(loop)):
