@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from zeroset import ReconstructionConfig, reconstruct, topology
-from zeroset.evaluate import points_to_mesh_distance
+from zeroset.evaluate import mesh_quality, points_to_mesh_distance
 from zeroset.repair import fill_small_holes
 from zeroset.rim import EDGE_OFFSET, SNAP, cut_mesh, data_edge
 from zeroset.synthetic import sample_cylinder
@@ -111,6 +111,8 @@ def test_open_pipe_rim_lies_at_the_data_edge_without_steps(n):
     spacing = np.sqrt(2 * np.pi * radius * length / n)
     loops = topology.boundary_loops(mesh.faces)
     assert len(loops) == 2 and result.stats["mesh_components"] == 1
+    quality = mesh_quality(mesh)
+    assert quality["non_manifold_edges"] == 0 and quality["non_manifold_vertices"] == 0
     for loop in loops:
         ring = mesh.vertices[np.r_[loop, loop[:1]]]
         rim_length = np.linalg.norm(np.diff(ring, axis=0), axis=1).sum()

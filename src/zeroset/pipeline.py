@@ -438,6 +438,9 @@ def trim_rim(mesh: Mesh, points, radii, reach, parameters, config, stats) -> Mes
         mesh, points, radii, cube_size=parameters.cube_size, reach=reach
     )
     stats.update(counts)
+    # An end moved onto the cut can join two stretches of rim at one vertex: split it.
+    mesh, split = split_nonmanifold_vertices(mesh)
+    stats["bowtie_vertices_split"] += split
     if config.max_hole_edges > 0:  # holes Hoppe's rule could not resolve either stay shut
         mesh, filled = fill_small_holes(
             mesh, config.max_hole_edges, max_width=RIM_HOLE_WIDTH * parameters.rho_delta
