@@ -5,7 +5,7 @@ import pytest
 
 from zeroset import io, topology
 from zeroset.cli import main
-from zeroset.synthetic import sample_cylinder, sample_sphere
+from zeroset.synthetic import sample_cylinder, sample_sphere, scan_pipe
 
 
 @pytest.fixture(scope="module")
@@ -72,6 +72,17 @@ def test_options_reach_the_pipeline(sphere_file, tmp_path):
     assert reading["input_points"] == 4000 and abs(reading["sampled_out"] - 2000) < 150
     assert report["stats"]["input_points"] == 4000 - reading["sampled_out"]
     assert "read" in report["timings"] and report["peak_mib"] > 0
+
+
+@pytest.mark.parametrize("flag, bridges", [("--gap-bridges", True), ("--no-gap-bridges", False)])
+def test_gap_bridges_flag_reaches_the_pipeline(flag, bridges, tmp_path):
+    path = tmp_path / "scan.ply"
+    io.write_points(path, scan_pipe(radius=0.1, rotation_step=1.0, rng=3).points)
+    report = tmp_path / "r.json"
+    argv = ["reconstruct", str(path), "-o", str(tmp_path / "m.ply"), flag, "--quiet"]
+    assert main([*argv, "--report", str(report)]) == 0
+    stats = json.loads(report.read_text())["stats"]
+    assert (stats["gap_bridge_points"] > 0) == bridges
 
 
 def test_viewpoint_option_orients_towards_the_sensor(tmp_path):

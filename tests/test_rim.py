@@ -7,7 +7,7 @@ from zeroset import ReconstructionConfig, reconstruct, topology
 from zeroset.evaluate import mesh_quality, points_to_mesh_distance
 from zeroset.repair import fill_small_holes
 from zeroset.rim import EDGE_OFFSET, SNAP, cut_mesh, data_edge
-from zeroset.synthetic import sample_cylinder
+from zeroset.synthetic import sample_cylinder, scan_pipe
 from zeroset.types import Mesh
 
 
@@ -154,6 +154,15 @@ def test_rim_of_whole_cubes_is_hoppes_and_is_not_cut():
     # The cubes' rim reaches well past the end of the pipe, the cut one does not.
     reach = np.sqrt(2 * np.pi * 0.25 / n) + 3 * noise
     assert cubes.mesh.vertices[:, 2].max() > 1.0 + reach >= data.mesh.vertices[:, 2].max()
+
+
+def test_without_gap_bridges_the_far_ends_of_a_scan_tear():
+    # Far down a 0.1 m pipe the scan rings are 2-2.5 rho+delta apart: bridges join them.
+    scan = scan_pipe(radius=0.1, rotation_step=1.0, offset=0.0, rng=3)
+    bridged = reconstruct(scan.points)
+    torn = reconstruct(scan.points, gap_bridges=False)
+    assert bridged.stats["gap_bridge_points"] > 0 and torn.stats["gap_bridge_points"] == 0
+    assert bridged.stats["boundary_loops"] == 2 < torn.stats["boundary_loops"]
 
 
 def test_unknown_rim_is_refused():

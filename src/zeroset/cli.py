@@ -268,6 +268,15 @@ def _add_config_options(parser: argparse.ArgumentParser) -> None:
         if "flag" in f.metadata:
             names.append(f"--{f.metadata['flag']}")
         kind = str(f.type)
+        if kind == "bool":
+            group.add_argument(
+                *names,
+                dest=f.name,
+                action=argparse.BooleanOptionalAction,
+                default=argparse.SUPPRESS,
+                help=f.metadata["help"] + f" (default: {'on' if f.default else 'off'})",
+            )
+            continue
         if "tuple" in kind:
             convert = _number_list(f.metadata["nargs"])
             metavar = ",".join(

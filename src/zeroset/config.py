@@ -76,6 +76,11 @@ class ReconstructionConfig:
         "cubes (whole cubes whose corners lie within reach of the data, as in Hoppe's method)",
         choices=RIMS,
     )
+    gap_bridges: bool = _opt(
+        True,
+        "cross gaps in the sampling up to 3.5 rho_delta wide (scan bands far down a pipe) with "
+        "chords that leave a point on its open side",
+    )
     min_component_faces: int = _opt(20, "drop mesh components with fewer faces")
     max_hole_edges: int = _opt(
         6,
@@ -95,6 +100,8 @@ class ReconstructionConfig:
             raise ValueError(f"contour must be one of {CONTOURS}; got {self.contour!r}")
         if self.surface not in SURFACES:
             raise ValueError(f"surface must be one of {SURFACES}; got {self.surface!r}")
+        if not isinstance(self.gap_bridges, bool):
+            raise ValueError(f"gap_bridges must be True or False; got {self.gap_bridges!r}")
         if self.rim not in RIMS:
             raise ValueError(f"rim must be one of {RIMS}; got {self.rim!r}")
         if self.fit_support is not None and not self.fit_support > 0:

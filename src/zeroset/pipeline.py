@@ -196,7 +196,7 @@ def reconstruct(
             parameters,
             stats,
             stages,
-            rim=config.rim,
+            config=config,
             jets=jets,
         )
         with stages.stage("contour"):
@@ -378,23 +378,36 @@ def oriented_jets(fitted: FittedPlanes, normals: np.ndarray) -> Jets | None:
 
 
 def distance_field(
-    local, fitted, normals, parameters, stats, stages, *, rim: str, jets: Jets | None = None
+    local,
+    fitted,
+    normals,
+    parameters,
+    stats,
+    stages,
+    *,
+    config: ReconstructionConfig,
+    jets: Jets | None = None,
 ) -> tuple[DistanceField, np.ndarray]:
     """Stage "signed distance": the field of the planes of `fitted` turned by `normals`,
     valued by the oriented `jets` where they are given, and the gap bridges (B, 3).
 
-    For ``rim="data"`` the field reaches one cube further than the points' radii, so that
+    Without ``config.gap_bridges`` there are none. For ``config.rim == "data"`` the field
+    reaches one cube further than the points' radii, so that
     the cubes cover the edge of the data wherever the lattice lies; the rim is then cut
     back to that edge (`trim_rim`)."""
     with stages.stage("signed distance"):
-        bridges = gap_bridges(fitted.points, fitted.sectors, rho_delta=parameters.rho_delta)
+        bridges = (
+            gap_bridges(fitted.points, fitted.sectors, rho_delta=parameters.rho_delta)
+            if config.gap_bridges
+            else np.zeros((0, 3))
+        )
         stats["gap_bridge_points"] = bridges.shape[0]
         field_ = signed_distance(
             local,
             fitted.planes.centroids,
             normals,
             cube_size=parameters.cube_size,
-            radius=fitted.radii + (parameters.cube_size if rim == "data" else 0.0),
+            radius=fitted.radii + (parameters.cube_size if config.rim == "data" else 0.0),
             bridges=bridges,
             bridge_reach=BRIDGE_REACH * parameters.rho_delta,
             surface=None if jets is None else (lambda x: evaluate_jets(jets, x)[0]),

@@ -225,7 +225,7 @@ def reconstruct_tiled(
 
     start = time.perf_counter()
     pieces = [
-        client.submit(_contour_tile, fit, flip, parameters, config.rim, pure=False)
+        client.submit(_contour_tile, fit, flip, parameters, config, pure=False)
         for fit, flip in zip(fits, flips, strict=True)
     ]
     pieces = _gather(client, pieces, "contouring", progress)
@@ -529,7 +529,9 @@ def _root_signs(extremes, sign, group) -> None:
             sign[members] *= -1.0
 
 
-def _contour_tile(fit: dict | None, flips: dict, parameters: Parameters, rim: str) -> dict:
+def _contour_tile(
+    fit: dict | None, flips: dict, parameters: Parameters, config: ReconstructionConfig
+) -> dict:
     """Contour the cubes a tile owns (a Dask task)."""
     import socket
 
@@ -568,7 +570,7 @@ def _contour_tile(fit: dict | None, flips: dict, parameters: Parameters, rim: st
         parameters,
         stats,
         Stages((), show=False),
-        rim=rim,
+        config=config,
         jets=jets,
     )
     edge_keys, vertices, faces, cube_keys = keyed_marching_cubes(field_, owned=fit["tile"].owned)
