@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from .neighbours import build_tree
-from .topology import boundary_edges, face_area_vectors, undirected_edges
+from .topology import boundary_edges, face_area_vectors, undirected_edges, vertex_normals
 from .types import Mesh
 
 __all__ = ["EDGE_OFFSET", "cut_mesh", "data_edge", "trim_to_data"]
@@ -224,11 +224,7 @@ def trim_to_data(
         )
         tested |= np.isfinite(distance)
     near = np.flatnonzero(tested)
-    normals = np.zeros_like(mesh.vertices)
-    area = face_area_vectors(mesh.vertices, mesh.faces)
-    for corner in range(3):
-        np.add.at(normals, mesh.faces[:, corner], area)
-    normals /= np.maximum(np.linalg.norm(normals, axis=1), 1e-300)[:, None]
+    normals = vertex_normals(mesh)
     value = np.full(mesh.n_vertices, -1.0)
     value[near] = data_edge(
         points, radii, mesh.vertices[near], normals[near], reach=reach, tree=tree

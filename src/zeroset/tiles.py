@@ -577,12 +577,10 @@ def _contour_tile(
     for key in ("jets", "fit_support", "fit_notes"):  # the client counts the jets owned
         stats.pop(key, None)
     support, radii, reach = data_support(fitted, bridges, parameters)
-    box_lo, box_hi = _owned_box(fit["tile"], parameters.cube_size)
-    owned = np.all((support >= box_lo) & (support < box_hi), axis=1)
+    lo, hi = fit["tile"].owned
+    owned = _in_cubes(support, lo, hi, parameters.cube_size)
     if jets is not None:
-        lo, hi = fit["tile"].owned
-        cube = np.floor(jets.centres / parameters.cube_size)
-        jets = select_jets(jets, np.all((cube >= lo) & (cube < hi), axis=1))
+        jets = select_jets(jets, _in_cubes(jets.centres, lo, hi, parameters.cube_size))
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     return {
         **empty,
@@ -597,6 +595,12 @@ def _contour_tile(
         "peak_mib": peak,
         "jets": jets,
     }
+
+
+def _in_cubes(positions: np.ndarray, lo, hi, cube: float) -> np.ndarray:
+    """(N,) whether each position lies in a cube of index lo..hi - 1 on every axis."""
+    index = np.floor(positions / cube)
+    return np.all((index >= lo) & (index < hi), axis=1)
 
 
 def _owned_jets(pieces) -> Jets | None:

@@ -24,6 +24,7 @@ __all__ = [
     "is_edge_manifold",
     "undirected_edges",
     "signed_volume",
+    "vertex_normals",
 ]
 
 
@@ -173,6 +174,19 @@ def face_area_vectors(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     """(F, 3) normal of every face with twice its area as length (zero for a degenerate face)."""
     a, b, c = (vertices[faces[:, i]] for i in range(3))
     return np.cross(b - a, c - a)
+
+
+def vertex_normals(mesh: Mesh) -> np.ndarray:
+    """(V, 3) area-weighted unit vertex normals (zero where a vertex has no face)."""
+    area = face_area_vectors(mesh.vertices, mesh.faces)
+    normals = np.stack(
+        [
+            np.bincount(mesh.faces.reshape(-1), np.repeat(area[:, i], 3), mesh.n_vertices)
+            for i in range(3)
+        ],
+        axis=1,
+    )
+    return normals / np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-300)
 
 
 def signed_volume(mesh: Mesh) -> float:

@@ -15,7 +15,7 @@ import numpy as np
 from ._validate import as_points
 from .errors import InputError, ZerosetError
 from .io import atomic_target
-from .topology import boundary_edges
+from .topology import boundary_edges, vertex_normals
 from .types import Mesh
 
 __all__ = [
@@ -193,7 +193,7 @@ def render(
             ctx.program(vertex_shader=_SURFACE_SHADERS[0], fragment_shader=_SURFACE_SHADERS[1])
         )
         flat = keep(ctx.program(vertex_shader=_FLAT_SHADERS[0], fragment_shader=_FLAT_SHADERS[1]))
-        data = np.hstack([vertices, _vertex_normals(mesh).astype(np.float32), base])
+        data = np.hstack([vertices, vertex_normals(mesh).astype(np.float32), base])
         surface_vao = keep(
             ctx.vertex_array(
                 surface,
@@ -367,18 +367,6 @@ def _bounding_sphere(vertices: np.ndarray) -> tuple[np.ndarray, float]:
     """Centre and radius of the bounding box's sphere."""
     lo, hi = vertices.min(axis=0), vertices.max(axis=0)
     return (lo + hi) / 2.0, max(float(np.linalg.norm(hi - lo)) / 2.0, 1e-12)
-
-
-def _vertex_normals(mesh: Mesh) -> np.ndarray:
-    """(M, 3) area-weighted vertex normals (zero where a vertex has no face)."""
-    tri = mesh.vertices[mesh.faces]
-    face_normals = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-    corners = mesh.faces.reshape(-1)
-    weights = np.repeat(face_normals, 3, axis=0)
-    normals = np.stack(
-        [np.bincount(corners, weights[:, i], mesh.n_vertices) for i in range(3)], axis=1
-    )
-    return normals / np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-300)
 
 
 def _camera(elevation: float, azimuth: float, aspect: float) -> tuple[np.ndarray, np.ndarray]:
