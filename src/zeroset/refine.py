@@ -15,7 +15,7 @@ import numpy as np
 
 from .jets import evaluate_jets
 from .neighbours import build_tree
-from .topology import face_area_vectors, undirected_edges
+from .topology import face_area_vectors, undirected_edges, undo_turned_faces
 from .types import Jets, Mesh
 
 __all__ = ["project_to_surface", "refine_mesh", "split_edges"]
@@ -58,15 +58,8 @@ def project_to_surface(mesh: Mesh, jets: Jets, *, steps: int = PROJECTION_STEPS)
         step = np.where(squared > 0.25, values / np.maximum(squared, 0.25), 0.0)
         moved = vertices - step[:, None] * gradients
         moved[held] = vertices[held]
-        while True:
-            turned = np.einsum("ij,ij->i", face_area_vectors(moved, faces), before) <= 0.0
-            back = np.unique(faces[turned])
-            back = back[np.any(moved[back] != vertices[back], axis=1)]
-            if back.size == 0:
-                break
-            moved[back] = vertices[back]
-            held[back] = True
-        vertices = moved
+        vertices, back = undo_turned_faces(moved, vertices, faces, before)
+        held |= back
     return Mesh(vertices=vertices, faces=faces), int(np.count_nonzero(held))
 
 

@@ -17,7 +17,13 @@ from __future__ import annotations
 import numpy as np
 
 from .neighbours import build_tree
-from .topology import boundary_edges, face_area_vectors, undirected_edges, vertex_normals
+from .topology import (
+    boundary_edges,
+    face_area_vectors,
+    undirected_edges,
+    undo_turned_faces,
+    vertex_normals,
+)
 from .types import Mesh
 
 __all__ = ["EDGE_OFFSET", "cut_mesh", "data_edge", "trim_to_data"]
@@ -143,14 +149,8 @@ def cut_mesh(mesh: Mesh, value: np.ndarray, *, locate=None) -> tuple[Mesh, int]:
     moved, first = np.unique(end[close], return_index=True)
     vertices[moved] = position[np.concatenate([rows, rows])[close[first]]]
     # A move that would turn a triangle over is undone (the edge is cut instead).
-    before = face_area_vectors(mesh.vertices, faces)
-    while True:
-        turned = np.einsum("ij,ij->i", face_area_vectors(vertices, faces), before) <= 0.0
-        back = np.intersect1d(faces[turned], moved)
-        back = back[np.any(vertices[back] != mesh.vertices[back], axis=1)]
-        if back.size == 0:
-            break
-        vertices[back] = mesh.vertices[back]
+    reference = face_area_vectors(mesh.vertices, faces)
+    vertices, _ = undo_turned_faces(vertices, mesh.vertices, faces, reference)
     value[np.any(vertices != mesh.vertices, axis=1)] = 0.0
     # Cut what is still crossed: each edge with one end inside and one outside.
     inside, outside = value < 0.0, value > 0.0

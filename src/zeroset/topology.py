@@ -23,6 +23,7 @@ __all__ = [
     "is_consistently_oriented",
     "is_edge_manifold",
     "undirected_edges",
+    "undo_turned_faces",
     "signed_volume",
     "vertex_normals",
 ]
@@ -174,6 +175,25 @@ def face_area_vectors(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     """(F, 3) normal of every face with twice its area as length (zero for a degenerate face)."""
     a, b, c = (vertices[faces[:, i]] for i in range(3))
     return np.cross(b - a, c - a)
+
+
+def undo_turned_faces(moved: np.ndarray, previous: np.ndarray, faces: np.ndarray, reference):
+    """Bring vertices back until no face of `moved` (V, 3) turns against `reference`.
+
+    A face whose area vector makes an angle of 90 degrees or more with its `reference`
+    (F, 3) area vector sends its vertices that moved back to `previous` (V, 3), repeatedly,
+    until no face is turned. Returns the vertices and a (V,) bool mask of those sent back.
+    """
+    moved = moved.copy()
+    sent_back = np.zeros(moved.shape[0], dtype=bool)
+    while True:
+        turned = np.einsum("ij,ij->i", face_area_vectors(moved, faces), reference) <= 0.0
+        back = np.unique(faces[turned])
+        back = back[np.any(moved[back] != previous[back], axis=1)]
+        if back.size == 0:
+            return moved, sent_back
+        moved[back] = previous[back]
+        sent_back[back] = True
 
 
 def vertex_normals(mesh: Mesh) -> np.ndarray:
