@@ -85,7 +85,7 @@ def fit_jet_rows(points, weights, spreads, indices, distances, radius, min_count
     """Jets by weighted least squares, one row at a time (see zeroset._kernels.jets)."""
     n, k = indices.shape
     out = [np.zeros((n, 3)), np.zeros((n, 3, 3)), np.zeros((n, 10)), np.zeros(n), np.zeros(n),
-           np.zeros(n)]
+           np.zeros(n), np.zeros(n)]
     for i in range(n):
         r = max(radius[i], distances[i, min(min_count, k) - 1] * (1 + 1e-9))
         inside = distances[i] / r < 1.0
@@ -114,8 +114,12 @@ def fit_jet_rows(points, weights, spreads, indices, distances, radius, min_count
                 x[6:10] = a3 + a5 + spread, a3 + a5 - spread, np.cos(angle), np.sin(angle)
         height = x[0] + x[1] * u + x[2] * v + x[3] * u * u + x[4] * u * v + x[5] * v * v
         residual = h - height - _quartic(x, u, v)[0]
+        # The residuals are (I - H) e with H = X A^-1 X^T W: E[sum w r^2] = sigma^2 (sum kern
+        # - tr(A^-1 X^T W K X)) for noise e of variance sigma^2 / weights.
+        absorbed = np.trace(np.linalg.solve(normal, design.T @ ((w * kern)[:, None] * design)))
         for array, value in zip(out, (c, frame, x, r, weights[j].sum(),
-                                      (w * residual**2).sum() / kern.sum()), strict=True):
+                                      (w * residual**2).sum() / kern.sum(),
+                                      absorbed / kern.sum()), strict=True):
             array[i] = value
     return tuple(out)
 

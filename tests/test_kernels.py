@@ -8,6 +8,7 @@ from tests import reference
 from zeroset._kernels import density as density_kernels
 from zeroset._kernels import evaluate as evaluate_kernels
 from zeroset._kernels import jets as jet_kernels
+from zeroset._kernels import linalg
 from zeroset._kernels import normals as normals_kernels
 from zeroset._kernels import optimize as optimize_kernels
 from zeroset._kernels import orientation as orientation_kernels
@@ -125,8 +126,12 @@ def test_jet_fit_matches_reference(seed):
     signs = np.sign(np.einsum("nij,nij->ni", got[1], expected[1]))
     np.testing.assert_allclose(got[1] * signs[..., None], expected[1], atol=1e-8)
     s1, s2, sn = signs.T
-    flips = np.stack([sn, sn * s1, sn * s2, sn, sn * s1 * s2, sn, sn, sn], axis=1)
-    np.testing.assert_allclose(got[2][:, :8] * flips, expected[2][:, :8], rtol=1e-7, atol=1e-9)
+    flips = np.stack([sn, sn * s1, sn * s2, sn, sn * s1 * s2, sn], axis=1)
+    np.testing.assert_allclose(got[2][:, :6] * flips, expected[2][:, :6], rtol=1e-7, atol=1e-9)
+    # Turning the normal over negates the principal curvatures, so they swap places.
+    curvatures = np.sort(got[2][:, 6:8] * sn[:, None], axis=1)
+    np.testing.assert_allclose(curvatures, np.sort(expected[2][:, 6:8], axis=1), rtol=1e-7,
+                               atol=1e-9)
 
 
 def test_component_extremes_finds_the_farthest_point_per_direction():
@@ -154,3 +159,56 @@ def test_projection_with_barycentrics_matches_the_numpy_closest_point():
     np.testing.assert_allclose(foot, expected, atol=1e-9)
     np.testing.assert_allclose(distance2, np.sum((points - expected) ** 2, axis=1), atol=1e-9)
     assert np.all(bary >= -1e-12) and np.allclose(bary.sum(axis=1), 1.0)
+
+
+def test_jet_freedom_predicts_the_residual_of_pure_noise():
+    # Rows standing for `weights` points each, with noise of variance sigma^2 / weight along
+    # the normal of a tilted plane: the misfit over 1 - freedom averages to sigma^2, whatever
+    # the support holds.
+    rng = np.random.default_rng(5)
+    n, sigma = 6_000, 0.001
+    uv = rng.uniform(-1, 1, size=(n, 2))
+    weights = rng.integers(1, 8, n).astype(float)
+    normal = np.array([-0.3, 0.2, 1.0]) / np.sqrt(1.13)
+    points = np.column_stack([uv, 0.3 * uv[:, 0] - 0.2 * uv[:, 1]])
+    points += (sigma / np.sqrt(weights) * rng.normal(size=n))[:, None] * normal
+    nb = knn(points, 48)
+    rows = rng.choice(n, 2_000, replace=False)
+    for radius in (0.06, 0.1, 0.16):
+        fit = jet_kernels.fit_rows(
+            points, weights, np.zeros((n, 3, 3)), nb.indices[rows], nb.distances[rows],
+            np.full(rows.size, radius), 8,
+        )
+        misfit, freedom = fit[5], fit[6]
+        assert np.all((freedom > 0.0) & (freedom < 1.0))
+        assert np.mean(misfit) < 0.95 * sigma**2  # the fit absorbs part of the noise ...
+        assert np.mean(misfit / (1.0 - freedom)) == pytest.approx(sigma**2, rel=0.04)  # ... this
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_small_eigen_decompositions_match_lapack(seed):
+    rng = np.random.default_rng(seed)
+    roots = rng.normal(size=(500, 3, 3))
+    matrices = roots @ roots.transpose(0, 2, 1)
+    # Nearly flat and nearly linear neighbourhoods: two eigenvalues almost equal.
+    matrices[:100] = np.diag([1e-9, 1.0, 1.0]) + 1e-12 * matrices[:100]
+    matrices[100:200] = np.diag([1e-9, 2e-9, 1.0]) + 1e-13 * matrices[100:200]
+    values, vectors = linalg.eigh_rows(matrices)
+    expected = np.linalg.eigvalsh(matrices)
+    scale = expected[:, -1:]
+    np.testing.assert_allclose(values / scale, expected / scale, atol=1e-12)
+    gram = vectors.transpose(0, 2, 1) @ vectors
+    np.testing.assert_allclose(gram, np.tile(np.eye(3), (500, 1, 1)), atol=1e-12)
+    residual = matrices @ vectors - vectors * values[:, None, :]
+    assert np.abs(residual).max() < 1e-12 * scale.max()
+
+
+def test_cholesky_solve_matches_numpy():
+    rng = np.random.default_rng(2)
+    root = rng.normal(size=(6, 6))
+    a = root @ root.T + 1e-3 * np.eye(6)
+    b = rng.normal(size=(6, 7))
+    x = b.copy()
+    assert linalg.cholesky_solve(a.copy(), x)
+    np.testing.assert_allclose(x, np.linalg.solve(a, b), rtol=1e-9, atol=1e-12)
+    assert not linalg.cholesky_solve(-a, b.copy())  # not positive definite

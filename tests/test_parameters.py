@@ -61,3 +61,22 @@ def test_given_values_win_and_are_noted(rng):
 def test_bad_options_are_rejected(option, value, message, rng):
     with pytest.raises(InputError, match=message):
         estimate_parameters(_noisy_plane(100, 0.0, rng), **{option: value})
+
+
+def _rippled_plane(n, sigma, rng, wavelength=0.05, amplitude=0.002):
+    xy = rng.uniform(0, 1, (n, 2))
+    k = 2 * np.pi / wavelength
+    height = amplitude * np.sin(k * xy[:, 0]) * np.sin(k * xy[:, 1])
+    return np.column_stack([xy, height]) + sigma * rng.normal(size=(n, 3))
+
+
+def test_quadric_noise_holds_neither_curvature_nor_resolved_detail(rng):
+    # Ripples 2 mm high, 5 cm long, under 0.5 mm of noise: a plane's residuals take them
+    # for noise, a quadric's do not.
+    params = estimate_parameters(_rippled_plane(40_000, 0.0005, rng), rng=0)
+    assert params.noise > 1.3 * 0.0005
+    assert params.quadric_noise == pytest.approx(0.0005, rel=0.1)
+    sphere = np.random.default_rng(1).normal(size=(20_000, 3))
+    sphere = 0.1 * sphere / np.linalg.norm(sphere, axis=1, keepdims=True)
+    sphere += 0.001 * rng.normal(size=sphere.shape)
+    assert estimate_parameters(sphere, rng=0).quadric_noise == pytest.approx(0.001, rel=0.06)

@@ -14,6 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from ._kernels.density import sector_nearest
+from ._kernels.linalg import eigh_rows
 from ._kernels.normals import centroid_covariance
 from .neighbours import build_tree
 
@@ -72,12 +73,14 @@ def sector_distances(points, indices, distances) -> tuple[np.ndarray, np.ndarray
     column : (R, SECTORS) int64
         Its column in `indices`; -1 where there is none.
     """
-    valid = np.isfinite(distances)
-    indices = np.where(valid, indices, -1).astype(np.int64)
     distances = np.ascontiguousarray(distances, dtype=np.float64)
+    valid = np.isfinite(distances)
+    indices = np.ascontiguousarray(indices, dtype=np.int64)
+    if not valid.all():
+        indices = np.where(valid, indices, -1)
     n_rows = indices.shape[0]
     _, covariances, _ = centroid_covariance(points, indices, distances, np.full(n_rows, np.inf))
-    axes = np.linalg.eigh(covariances)[1]
+    axes = eigh_rows(covariances)[1]
     return sector_nearest(
         points,
         indices,

@@ -88,6 +88,8 @@ def knn(points: np.ndarray, k: int, *, tree: cKDTree | None = None) -> Neighbour
 
 def restrict(neighbours: Neighbourhoods, keep: np.ndarray) -> Neighbourhoods:
     """Keep the rows where `keep` (N,) is true and renumber; dropped neighbours become -1, inf."""
+    if keep.all():
+        return neighbours
     new_index = np.full(keep.shape[0], -1, dtype=np.int64)
     new_index[keep] = np.arange(int(keep.sum()))
     indices = new_index[neighbours.indices[keep]]

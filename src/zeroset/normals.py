@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ._kernels.linalg import eigh_rows
 from ._kernels.normals import centroid_covariance
 from ._validate import as_points, positive, positive_per_row
 from .neighbours import knn
@@ -72,7 +73,7 @@ def tangent_planes(
         radius, np.where(np.isfinite(distances[:, k_min - 1]), distances[:, k_min - 1], radius)
     )
     centroids, covariances, counts = centroid_covariance(points, indices, distances, row_radius)
-    eigenvalues, eigenvectors = np.linalg.eigh(covariances)
+    eigenvalues, eigenvectors = eigh_rows(covariances)
     normals = np.ascontiguousarray(eigenvectors[:, :, 0])
     return TangentPlanes(
         centroids=centroids,

@@ -7,6 +7,7 @@ import numpy as np
 from ._validate import positive, require_rng
 from .density import SECTORS, SECTORS_NEEDED, plane_variance, sector_radius
 from .errors import InputError, ReconstructionError
+from .jets import quadric_noise
 from .neighbours import build_tree
 from .types import Parameters
 
@@ -74,7 +75,7 @@ def estimate_parameters(
     -------
     Parameters
         ``rho_delta``, ``cube_size``, ``min_neighbours``, ``spacing``, ``noise``,
-        ``averaging_cell`` and a note on each.
+        ``quadric_noise``, ``averaging_cell`` and a note on each.
 
     Raises
     ------
@@ -143,6 +144,11 @@ def estimate_parameters(
     else:
         rho_delta = positive(rho_delta, "rho_delta")
         notes.append(f"rho_delta = {rho_delta:.6g}: given")
+    fine = quadric_noise(points, rows[:WIDE_ROWS], rho_delta, tree=tree)
+    notes.append(
+        f"quadric_noise = {fine:.6g}: median RMS residual of quadric fits of radius rho_delta, "
+        "over the share of the noise they leave"
+    )
     if cube_size is None:
         cube_size = cube_factor * rho_delta
         notes.append(f"cube_size = {cube_size:.6g}: {cube_factor:g} x rho_delta")
@@ -169,6 +175,7 @@ def estimate_parameters(
         min_neighbours=min_neighbours,
         spacing=spacing,
         noise=noise,
+        quadric_noise=fine,
         averaging_cell=averaging_cell,
         notes=tuple(notes),
     )

@@ -360,7 +360,7 @@ def fit_planes(local, viewpoints, parameters, config, stats, stages) -> FittedPl
                 (np.cumsum(keep) - 1)[cell[rows]],
                 planes.centroids,
                 planes.normals,
-                noise=parameters.noise,
+                noise=parameters.quadric_noise,
                 rho_delta=parameters.rho_delta,
                 support=config.fit_support,
             )

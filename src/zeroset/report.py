@@ -74,6 +74,7 @@ def reconstruction_report(
             "cube_size": params.cube_size,
             "spacing": params.spacing,
             "noise": params.noise,
+            "quadric_noise": params.quadric_noise,
             "averaging_cell": params.averaging_cell,
             "min_neighbours": params.min_neighbours,
             "notes": list(params.notes),

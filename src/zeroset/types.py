@@ -94,6 +94,10 @@ class Parameters:
         Sampling density rho: a quantile of the distance to the k-th neighbour.
     noise : float
         Noise level sigma: median RMS distance of small neighbourhoods from their plane.
+    quadric_noise : float
+        Noise level measured by quadric fits (jets) of radius `rho_delta`
+        (`zeroset.jets.quadric_noise`): it holds no curvature, where `noise` does, and only
+        the detail finer than rho+delta. The jets' supports are chosen with it.
     averaging_cell : float
         Size of the cubic cells the points are averaged in before the tangent planes are
         fitted; 0 when the points are used as they are.
@@ -106,6 +110,7 @@ class Parameters:
     min_neighbours: int
     spacing: float
     noise: float
+    quadric_noise: float
     averaging_cell: float = 0.0
     notes: tuple[str, ...] = field(default=())
 

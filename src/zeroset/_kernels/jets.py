@@ -3,6 +3,7 @@
 import numpy as np
 
 from ._jit import jit, jit_parallel, prange
+from .linalg import cholesky_solve, eigh3
 
 #: Ridge added to the normal equations, relative to their trace (in support-scaled units).
 RIDGE = 1e-9
@@ -57,19 +58,23 @@ def _set_quartic(x):
 
 
 @jit
-def _solve_quadric(points, weights, spreads, indices, distances, i, r, c, frame, x):
+def _solve_quadric(points, weights, spreads, indices, distances, i, r, c, frame, x, freedom):
     # Weighted least squares for a0..a5 of the heights less the quartic of x (support-scaled).
     # A row standing for points of covariance S has mean height h(mean) + tr(H S) / 2, so
     # its quadratic terms are the second moments u^2 + S_uu, u v + S_uv, v^2 + S_vv.
+    # With `freedom`, returns the freedom the fit absorbs, tr(A^-1 B) with A = X^T W X,
+    # B = X^T W K X (W the weights times the kernel K): the expected weighted squared
+    # residual of rows of noise variance sigma^2 / weight is sigma^2 (sum K - tr(A^-1 B)).
     k = indices.shape[1]
     normal = np.zeros((6, 6))
-    rhs = np.zeros(6)
+    solved = np.zeros((6, 7))  # [rhs | B], then A^-1 [rhs | B]
     row = np.empty(6)
     for s in range(k):
         q = distances[i, s] / r
         if q < 1.0:
             j = indices[i, s]
-            w = weights[j] * (1.0 - q * q) ** 2
+            kern = (1.0 - q * q) ** 2
+            w = weights[j] * kern
             u, v, h = _frame_coordinates(points[j], c, frame)
             h -= _quartic(x, u, v)[0]
             suu = suv = svv = 0.0
@@ -88,28 +93,41 @@ def _solve_quadric(points, weights, spreads, indices, distances, i, r, c, frame,
             row[4] = u * v + suv / (r * r)
             row[5] = v * v + svv / (r * r)
             for a in range(6):
-                rhs[a] += w * row[a] * h
-                for b in range(6):
-                    normal[a, b] += w * row[a] * row[b]
+                wa = w * row[a]
+                solved[a, 0] += wa * h
+                for b in range(a, 6):
+                    normal[a, b] += wa * row[b]
+                if freedom:
+                    for b in range(a, 6):
+                        solved[a, b + 1] += wa * kern * row[b]
+    for a in range(6):
+        for b in range(a):
+            normal[a, b] = normal[b, a]
+            solved[a, b + 1] = solved[b, a + 1]
     ridge = RIDGE * (normal[0, 0] + normal[1, 1] + normal[2, 2] + normal[3, 3])
     for a in range(6):
         normal[a, a] += ridge
-    a = np.linalg.solve(normal, rhs)
-    x[0] = a[0]
-    x[1] = a[1] / r
-    x[2] = a[2] / r
-    x[3] = a[3] / (r * r)
-    x[4] = a[4] / (r * r)
-    x[5] = a[5] / (r * r)
+    if not cholesky_solve(normal.copy(), solved):
+        solved[:] = np.linalg.solve(normal, solved)
+    x[0] = solved[0, 0]
+    x[1] = solved[1, 0] / r
+    x[2] = solved[2, 0] / r
+    x[3] = solved[3, 0] / (r * r)
+    x[4] = solved[4, 0] / (r * r)
+    x[5] = solved[5, 0] / (r * r)
+    return (
+        solved[0, 1] + solved[1, 2] + solved[2, 3] + solved[3, 4] + solved[4, 5] + solved[5, 6]
+    )
 
 
 @jit_parallel
 def _fit_rows(points, weights, spreads, indices, distances, radius, min_count, centres, frames,
-              coefficients, radii, mass, misfit):
+              coefficients, radii, mass, misfit, freedom):
     # Row i: weights c_j (1 - (d/r)^2)^2 over the neighbours within r = max(radius[i], the
     # distance to its min_count-th neighbour); centroid and PCA frame (e1, e2, n); then
     # w = a0 + a1 u + a2 v + a3 u^2 + a4 u v + a5 v^2 by weighted least squares in
-    # coordinates scaled by r. misfit = sum c k r^2 / sum k, the kernel k = (1 - (d/r)^2)^2.
+    # coordinates scaled by r. misfit = sum c k r^2 / sum k, the kernel k = (1 - (d/r)^2)^2;
+    # freedom = tr(A^-1 B) / sum k, so that pure noise has misfit sigma^2 (1 - freedom).
     n, k = indices.shape
     for i in prange(n):
         r = max(radius[i], distances[i, min(min_count, k) - 1] * (1.0 + 1e-9))
@@ -141,16 +159,19 @@ def _fit_rows(points, weights, spreads, indices, distances, radius, min_count, c
                         cov[a, b] += w * (
                             (points[j, a] - c[a]) * (points[j, b] - c[b]) + spreads[j, a, b]
                         )
-        _, vectors = np.linalg.eigh(cov)
+        vectors = np.empty((3, 3))
+        eigh3(cov, vectors)
         frame = np.empty((3, 3))
         for d in range(3):
             frame[0, d] = vectors[d, 2]
             frame[1, d] = vectors[d, 1]
             frame[2, d] = vectors[d, 0]
         x = np.zeros(COEFFICIENTS)
-        _solve_quadric(points, weights, spreads, indices, distances, i, r, c, frame, x)
+        _solve_quadric(points, weights, spreads, indices, distances, i, r, c, frame, x, False)
         _set_quartic(x)  # then the quadric under the quartic of its curvatures
-        _solve_quadric(points, weights, spreads, indices, distances, i, r, c, frame, x)
+        absorbed = _solve_quadric(
+            points, weights, spreads, indices, distances, i, r, c, frame, x, True
+        )
         res = 0.0
         for s in range(k):
             q = distances[i, s] / r
@@ -165,6 +186,7 @@ def _fit_rows(points, weights, spreads, indices, distances, radius, min_count, c
         coefficients[i] = x
         mass[i] = m
         misfit[i] = res / sk
+        freedom[i] = absorbed / sk
 
 
 def fit_rows(points, weights, spreads, indices, distances, radius, min_count):
@@ -173,16 +195,17 @@ def fit_rows(points, weights, spreads, indices, distances, radius, min_count):
 
     Returns centres (J, 3), frames (J, 3, 3) with rows e1, e2, n, coefficients (J, 10)
     (``COEFFICIENTS``) in data units, radii (J,), mass (J,)
-    (summed weights within the radius) and misfit (J,) (kernel-weighted mean of
-    weight x residual^2).
+    (summed weights within the radius), misfit (J,) (kernel-weighted mean of
+    weight x residual^2) and freedom (J,): where each row is noise of variance
+    sigma^2 / weight about the quadric, the expected misfit is sigma^2 (1 - freedom).
     """
     n = indices.shape[0]
     centres, frames = np.zeros((n, 3)), np.zeros((n, 3, 3))
     coefficients = np.zeros((n, COEFFICIENTS))
-    radii, mass, misfit = np.zeros(n), np.zeros(n), np.zeros(n)
+    radii, mass, misfit, freedom = np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n)
     _fit_rows(points, weights, spreads, indices, distances, np.asarray(radius, dtype=np.float64),
-              min_count, centres, frames, coefficients, radii, mass, misfit)
-    return centres, frames, coefficients, radii, mass, misfit
+              min_count, centres, frames, coefficients, radii, mass, misfit, freedom)
+    return centres, frames, coefficients, radii, mass, misfit, freedom
 
 
 @jit_parallel
