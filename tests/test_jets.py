@@ -8,6 +8,7 @@ from zeroset import reconstruct, topology
 from zeroset.config import ReconstructionConfig
 from zeroset.evaluate import sample_surface
 from zeroset.jets import evaluate_jets, fit_jets, orient_jets
+from zeroset.parameters import estimate_parameters
 from zeroset.refine import project_to_surface, split_edges
 from zeroset.synthetic import sample_cylinder, sample_sphere, sample_torus
 from zeroset.types import Mesh
@@ -91,24 +92,29 @@ def test_error_falls_as_points_are_added():
     assert supports[0] <= supports[1] <= supports[2]  # more points per support
 
 
-def test_supports_shrink_to_follow_detail(monkeypatch):
-    # Ripples 2 mm high and 5 cm long (about 3.6 rho+delta) under 0.5 mm of noise: the
-    # curvature rule alone picks a support that flattens them. Detail measured at two
-    # pilot supports shrinks it, and the surface follows the ripples to a third of the
-    # error.
+def _ripple(x, y):
+    """Ripples 2 mm high and 5 cm long."""
+    k = 2 * np.pi / 0.05
+    return 0.002 * np.sin(k * x) * np.sin(k * y)
+
+
+def _rippled_points():
+    """40,000 points on a metre square of `_ripple`, noise 0.5 mm per axis."""
     rng = np.random.default_rng(3)
     xy = rng.uniform(0, 1, (40_000, 2))
-    k = 2 * np.pi / 0.05
+    return np.column_stack([xy, _ripple(*xy.T)]) + 0.0005 * rng.normal(size=(40_000, 3))
 
-    def ripple(x, y):
-        return 0.002 * np.sin(k * x) * np.sin(k * y)
 
-    points = np.column_stack([xy, ripple(*xy.T)]) + 0.0005 * rng.normal(size=(40_000, 3))
+def test_supports_shrink_to_follow_detail(monkeypatch):
+    # The ripples are about 3.6 rho+delta long: the curvature rule alone picks a support
+    # that flattens them. Detail measured at two pilot supports shrinks it, and the
+    # surface follows the ripples to a third of the error.
+    points = _rippled_points()
 
     def error(result):
         x, _ = sample_surface(result.mesh, 100_000, rng=0)
         x = x[np.all((x[:, :2] > 0.1) & (x[:, :2] < 0.9), axis=1)]
-        return np.abs(x[:, 2] - ripple(x[:, 0], x[:, 1])).mean()
+        return np.abs(x[:, 2] - _ripple(x[:, 0], x[:, 1])).mean()
 
     followed = reconstruct(points)
     monkeypatch.setattr("zeroset.jets.DETAIL_MARGIN", np.inf)
@@ -117,6 +123,24 @@ def test_supports_shrink_to_follow_detail(monkeypatch):
     assert error(followed) < 0.4 * error(flattened)
     assert error(followed) < 0.0003  # below the noise of one point
     assert "shrunk to follow detail" in followed.jets.notes[0]
+
+
+def test_crowded_pilots_measure_no_detail():
+    # Told that the points lie ten times farther apart than they do, every pilot holds far
+    # more points than expected, as next to a rotating scanner: detail is not measured.
+    points = _rippled_points()
+    params = estimate_parameters(points, rng=0)
+    fits = {
+        factor: fit_jets(
+            points,
+            noise=params.quadric_noise,
+            rho_delta=params.rho_delta,
+            spacing=factor * params.spacing,
+        )
+        for factor in (1.0, 10.0)
+    }
+    assert fits[10.0].support > 1.6 * fits[1.0].support
+    assert " 0 pilots shrunk" in fits[10.0].notes[0]
 
 
 def test_vertices_lie_on_the_blended_surface():

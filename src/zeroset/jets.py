@@ -61,9 +61,14 @@ JET_BIAS = 0.025
 MIN_SUPPORT, MAX_SUPPORT = 1.0, 6.0
 #: Second support of the pilot fits, as a share of theirs, that separates detail from noise;
 #: detail counts where it exceeds this many times the noise variance. On smooth synthetic
-#: surfaces it stays below 2 in 99.9 % of the pilots, and reaches 3.3 where a rotating
-#: scanner's lines crowd; on the real scans its median is 10.
+#: surfaces it stays below 2 in 99.9 % of the pilots; on the real scans its median is 10.
 DETAIL_SUPPORT, DETAIL_MARGIN = 0.6, 3.0
+#: Pilots holding more than this many times the points expected at the cloud's spacing
+#: (13 within the spacing, `zeroset.types.Parameters.spacing`) are crowded: next to a
+#: rotating scanner, where detail measured on the in-pipe scan and the SICK room scan shrank
+#: supports until the surface there broke up. Even clouds hold 1.3-1.8 times the expected
+#: count at the median pilot.
+CROWDED = 3.0
 #: Support of the pilot fits, in rho+delta.
 PILOT_SUPPORT = 2.5
 #: Neighbours of a sample point in the noise estimate (`quadric_noise`).
@@ -93,6 +98,7 @@ def fit_jets(
     noise: float,
     rho_delta: float,
     support: float | None = None,
+    spacing: float | None = None,
 ) -> Jets:
     """Fit the jets of `points`, averaged in surface cells that a support holds 20-40 of.
 
@@ -119,6 +125,10 @@ def fit_jets(
         Neighbourhood radius; supports lie within [1, 6] rho_delta.
     support : float, optional
         One support radius for every jet instead of the bias-variance rule.
+    spacing : float, optional
+        The cloud's point spacing (`zeroset.types.Parameters.spacing`): pilots holding far
+        more points than it implies (``CROWDED``) measure no detail. By default every pilot
+        does.
 
     Returns
     -------
@@ -149,7 +159,8 @@ def fit_jets(
         points, feet, rho_delta, (PILOT_SUPPORT, DETAIL_SUPPORT * PILOT_SUPPORT)
     )
     extent = float(np.ptp(points, axis=0).max())
-    pilot_h, note = _supports(pilots, *fits, sigma, rho_delta, extent)
+    crowded = np.inf if spacing is None else CROWDED * 13.0 * (pilots.radii / spacing) ** 2
+    pilot_h, note = _supports(pilots, *fits, crowded, sigma, rho_delta, extent)
     if support is not None:
         support = positive(support, "support")
         note = f"support = {support:.6g}: given"
@@ -233,8 +244,13 @@ def quadric_noise(points, rows, radius: float, *, tree=None) -> float:
         np.full(indices.shape[0], float(radius)),
         min(MIN_CELLS, k),
     )
-    misfit, freedom = fit[5], fit[6]
-    return float(np.sqrt(np.median(misfit / np.maximum(1.0 - freedom, 0.1))))
+    return float(np.sqrt(np.median(_noise_variance(fit))))
+
+
+def _noise_variance(fit) -> np.ndarray:
+    """(J,) the noise variance the residuals of `fit_rows` output imply: the misfit over
+    1 - freedom, the share of the noise each fit leaves (at least 0.1)."""
+    return fit[5] / np.maximum(1.0 - fit[6], 0.1)
 
 
 def _feet(points, owner, origins, normals) -> np.ndarray:
@@ -375,16 +391,16 @@ def _pilot_fits(points, feet, rho_delta, supports=(PILOT_SUPPORT,)):
     return _jets(fits[0], "pilot fits"), fits, pilot_of
 
 
-def _supports(pilots, fit, small, sigma, rho_delta, extent):
+def _supports(pilots, fit, small, crowded, sigma, rho_delta, extent):
     """Support (P,) of a jet at each pilot by the bias-variance rule, and a note.
 
     `fit` and `small` are the pilots' fits (`fit_rows`) at their support and at
-    DETAIL_SUPPORT of it."""
+    DETAIL_SUPPORT of it; pilots holding more than `crowded` points measure no detail."""
     # The planes' noise holds what curvature their neighbourhoods had; the pilots' residuals
     # do not, and on a detailed object they are the smaller, truer measure. Taken over the
     # 8 nearest pilots, so that it stays local (and tiles see the same).
     tree = build_tree(pilots.centres)
-    residual = _nearest_median(tree, fit[5] / np.maximum(1.0 - fit[6], 0.1), pilots.centres)
+    residual = _nearest_median(tree, _noise_variance(fit), pilots.centres)
     sigma = np.minimum(sigma, np.sqrt(residual))
     density = fit[4] / (np.pi * pilots.radii**2)
     kappa = np.maximum(pilots.curvature, 1.0 / extent)
@@ -400,12 +416,14 @@ def _supports(pilots, fit, small, sigma, rho_delta, extent):
     # exceeds DETAIL_MARGIN times the noise variance. A jet of support x h_p then errs by
     # e x^4 in square and varies by V sigma^2 / (n_p x^2): the sum is least at
     # x^6 = V sigma^2 / (2 e n_p).
-    wide = fit[5] / np.maximum(1.0 - fit[6], 0.1)
-    narrow = small[5] / np.maximum(1.0 - small[6], 0.1)
     growth = 1.0 - (small[3] / fit[3]) ** 4
-    detail = _nearest_median(tree, (wide - narrow) / growth, pilots.centres)
+    detail = _nearest_median(
+        tree, (_noise_variance(fit) - _noise_variance(small)) / growth, pilots.centres
+    )
     excess = detail - DETAIL_MARGIN * sigma**2
-    detailed = excess > 0.0
+    # Where a scanner's lines crowd (next to a rotating scanner), neighbouring points share
+    # their lines' errors and are no independent samples: no detail is measured there.
+    detailed = (excess > 0.0) & (fit[4] <= crowded)
     best = pilots.radii[detailed] * (
         JET_VARIANCE * sigma[detailed] ** 2 / (2.0 * excess[detailed] * fit[4][detailed])
     ) ** (1.0 / 6.0)

@@ -363,6 +363,7 @@ def fit_planes(local, viewpoints, parameters, config, stats, stages) -> FittedPl
                 noise=parameters.quadric_noise,
                 rho_delta=parameters.rho_delta,
                 support=config.fit_support,
+                spacing=parameters.spacing,
             )
             stats["jets"] = jets.centres.shape[0]
             stats["fit_support"] = jets.support
