@@ -5,7 +5,7 @@ import pytest
 
 from zeroset import io, topology
 from zeroset.cli import main
-from zeroset.synthetic import sample_cylinder, sample_sphere, scan_pipe
+from zeroset.synthetic import sample_cylinder, sample_sphere, sample_torus, scan_pipe
 
 
 @pytest.fixture(scope="module")
@@ -107,6 +107,21 @@ def test_viewpoint_option_orients_towards_the_sensor(tmp_path):
     normals = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     # Seen from the axis, the faces look inwards.
     assert np.mean(np.einsum("ij,ij->i", normals[:, :2], tri.mean(axis=1)[:, :2]) < 0) > 0.99
+
+
+@pytest.mark.parametrize("quiet", [False, True])
+def test_surface_warnings_print_one_line_each(quiet, tmp_path, capsys):
+    path = tmp_path / "torus.xyz"
+    io.write_points(path, sample_torus(20_000, major=0.42, minor=0.13, noise=0.002, rng=0).points)
+    argv = ["reconstruct", str(path), "-o", str(tmp_path / "m.ply"), "--viewpoint", "0,0,0"]
+    assert main(argv + (["--quiet"] if quiet else [])) == 0
+    err = capsys.readouterr().err
+    if quiet:
+        assert err == ""
+    else:
+        lines = [line for line in err.splitlines() if "spanning tree disagree" in line]
+        assert len(lines) == 1 and lines[0].startswith("zeroset: warning: the sensor positions")
+        assert "Warning" not in err  # no Python warning text beside the line
 
 
 @pytest.mark.parametrize(

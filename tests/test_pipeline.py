@@ -1,11 +1,23 @@
 """End-to-end phase 1 on synthetic clouds with known surfaces."""
 
+import warnings
+
 import numpy as np
 import pytest
+from scipy.spatial import cKDTree
 
-from zeroset import InputError, ReconstructionError, evaluate, reconstruct, topology
+from zeroset import (
+    InputError,
+    ReconstructionConfig,
+    ReconstructionError,
+    SurfaceWarning,
+    evaluate,
+    reconstruct,
+    topology,
+)
 from zeroset.evaluate import points_to_mesh_distance
-from zeroset.synthetic import sample_cylinder, sample_sphere
+from zeroset.pipeline import surface_changes
+from zeroset.synthetic import sample_cylinder, sample_sphere, sample_torus, scan_pipe
 
 
 def _face_normals(mesh):
@@ -233,3 +245,49 @@ def test_method_of_cubes_keeps_topology_and_accuracy_with_better_triangles(
     ours, theirs = evaluate.smallest_angles(mesh), evaluate.smallest_angles(marching.mesh)
     assert np.percentile(ours, 5) > 20.0 > np.percentile(theirs, 5)
     assert mesh.n_faces <= marching.mesh.n_faces + 2 * euler
+
+
+def test_wrong_sensor_positions_are_not_trusted():
+    # Every "sensor" at the centre of a torus, in its hole: the outer half of the tube faces
+    # away from it. The sensors are not trusted, a warning says so, and the mesh is the one
+    # the spanning tree alone gives: closed, of genus one.
+    points = sample_torus(20_000, major=0.42, minor=0.13, noise=0.002, rng=0).points
+    plain = reconstruct(points)
+    with pytest.warns(SurfaceWarning, match="sensor positions and the spanning tree disagree"):
+        wrong = reconstruct(points, viewpoints=np.zeros_like(points))
+    assert wrong.orientation.method == "mst, viewpoints untrusted"
+    assert wrong.orientation.disagreement > 0.05
+    for key in ("mesh_components", "boundary_loops", "euler_characteristic"):
+        assert wrong.stats[key] == plain.stats[key]
+    assert topology.is_consistently_oriented(wrong.mesh.faces)
+    gap, _ = cKDTree(plain.mesh.vertices).query(wrong.mesh.vertices)
+    assert gap.max() < 0.5 * plain.parameters.rho_delta
+
+
+def test_right_sensor_positions_are_trusted():
+    scan = scan_pipe(rotation_step=2.0, rng=0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", SurfaceWarning)
+        result = reconstruct(scan.points, viewpoints=scan.viewpoints, gap_bridges=False)
+    assert result.orientation.method == "mst+viewpoints"
+    assert result.orientation.disagreement < 0.01
+
+
+def test_every_change_to_the_surface_names_its_off_switch():
+    config = ReconstructionConfig()
+    quiet = {"gap_bridge_points": 10, "phase1_points": 1_000, "orientation_components": 1}
+    assert surface_changes(quiet, config) == []  # 1 % bridges: random gaps, no warning
+    loud = {
+        "gap_bridge_points": 50,
+        "phase1_points": 1_000,
+        "small_holes_filled": 3,
+        "small_components_dropped": 2,
+        "orientation_components": 4,
+        "viewpoints_untrusted": 1,
+        "orientation_disagreement": 0.23,
+    }
+    messages = surface_changes(loud, config)
+    switches = ["--no-gap-bridges", "--max-hole-edges 0", "--min-component-faces 0", "orient_k"]
+    for message, switch in zip(messages, switches + ["viewpoints"], strict=True):
+        assert switch in message
+    assert "23.0%" in messages[-1]

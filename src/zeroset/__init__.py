@@ -1,7 +1,7 @@
 """zeroset: triangle meshes from noisy point clouds (Hoppe's zero-set reconstruction)."""
 
 from .config import ReconstructionConfig
-from .errors import InputError, ReconstructionError, ZerosetError
+from .errors import InputError, ReconstructionError, SurfaceWarning, ZerosetError
 from .optimization import OptimizationResult
 from .optimization import optimize_mesh as optimize
 from .pipeline import Reconstruction, reconstruct
@@ -18,6 +18,7 @@ __all__ = [
     "Reconstruction",
     "ReconstructionConfig",
     "ReconstructionError",
+    "SurfaceWarning",
     "TangentPlanes",
     "ZerosetError",
     "optimize",

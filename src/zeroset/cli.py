@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+import warnings
 from dataclasses import fields
 from pathlib import Path
 
@@ -17,7 +18,9 @@ def main(argv: list[str] | None = None) -> int:
     """Run the command line; return the exit status (0 ok, 1 no surface, 2 bad input).
 
     Every failure prints one line, ``zeroset: error: PATH: what is wrong``, and ``--debug``
-    shows the traceback instead. Messages from the pipeline, which knows no file names, get
+    shows the traceback instead. Every change to the surface beyond Hoppe's method
+    (`zeroset.SurfaceWarning`) prints one line, ``zeroset: warning: ...``, unless
+    ``--quiet``. Messages from the pipeline, which knows no file names, get
     the path of the command's ``input``. Any other exception is a bug, reported as such
     with exit status 1.
     """
@@ -26,10 +29,22 @@ def main(argv: list[str] | None = None) -> int:
     if args.command is None:
         parser.print_help()
         return 2
-    from .errors import InputError, ReconstructionError, ZerosetError
+    from .errors import InputError, ReconstructionError, SurfaceWarning, ZerosetError
 
     try:
-        return args.run(args)
+        with warnings.catch_warnings():
+            shown = warnings.showwarning
+
+            def show(message, category, *where, **more):
+                """A SurfaceWarning as one line, ``zeroset: warning: ...``."""
+                if not issubclass(category, SurfaceWarning):
+                    shown(message, category, *where, **more)
+                elif not getattr(args, "quiet", False):
+                    print(f"zeroset: warning: {message}", file=sys.stderr)
+
+            warnings.showwarning = show
+            warnings.simplefilter("always", SurfaceWarning)
+            return args.run(args)
     except Exception as exc:
         if args.debug:
             raise

@@ -1,6 +1,6 @@
 """Exceptions raised by zeroset."""
 
-__all__ = ["InputError", "ReconstructionError", "ZerosetError"]
+__all__ = ["InputError", "ReconstructionError", "SurfaceWarning", "ZerosetError"]
 
 
 class ZerosetError(Exception):
@@ -13,3 +13,9 @@ class InputError(ZerosetError, ValueError):
 
 class ReconstructionError(ZerosetError, RuntimeError):
     """Valid input that cannot support a surface with the chosen parameters."""
+
+
+class SurfaceWarning(UserWarning):
+    """The surface differs from what Hoppe's method gives alone: a hole closed, a gap
+    bridged, a component dropped, a hint not trusted. Each has a count in the stats and
+    an option that turns it off."""

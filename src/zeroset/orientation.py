@@ -19,6 +19,15 @@ __all__ = ["orient_normals"]
 #: grazing, and in sparse rings far down a pipe, a poorly fitted plane may face the sensor
 #: by chance; such points follow the tree.
 FACING = 0.5
+#: Share of disagreement (`zeroset.types.Orientation.disagreement`) above which the sensors
+#: are not trusted point by point: right sensor positions leave well under 1 % (0.06 % on
+#: the Stanford bunny's ten scans), one sensor on the wrong side of its scan about 3 %, and
+#: scan frames whose origins are no sensor positions 23 % (two scans of a torus).
+UNTRUSTED = 0.05
+#: Share of abrupt disagreement (`_abrupt`) from which the tree, not the sensors, is taken
+#: to be wrong: 0.56 on a thin plate whose two sides one tree joined, 0 with every sensor in
+#: a torus's hole.
+ABRUPT = 0.1
 #: Mean |cosine| from which a component's own sensors decide its sign in the vote.
 DECISIVE = 0.3
 #: Weight of the tree edges joining the virtual root to the anchored points: below every
@@ -52,6 +61,12 @@ def orient_normals(
     nearest anchor through the tree. Beams that graze the surface (far down a pipe) leave
     the sign of n . (v - c) to noise, so those points, and points with no known sensor,
     follow the tree instead. A component with no anchor follows the vote of the whole cloud.
+    Where the sensors and the tree disagree on more than ``UNTRUSTED`` of the anchored
+    points, one of them is wrong. If they part abruptly between neighbours that both face
+    their sensors (``ABRUPT``), the tree joined two sheets and the sensors orient as above;
+    if only across grazing points, the sensors are not where they are said to be: no point
+    is anchored, the tree orients every normal, and the sensors' vote only sets each
+    component's sign (``method`` says so).
 
     Parameters
     ----------
@@ -126,22 +141,39 @@ def orient_normals(
     )
     tree = minimum_spanning_tree(sparse.block_diag([graph, sparse.csr_matrix((1, 1))]) + virtual)
     signs = _walk(tree, normals, root_sign)
-    disagreement = None
+    disagreement, trusted = None, True
     if viewpoints is not None:
         cosine = _sensor_cosine(centroids, normals, viewpoints)
         signs *= _viewpoint_vote(cosine * signs, component)
         anchored = np.abs(cosine) >= FACING
         if anchored.any():
-            disagreement = float(np.mean(signs[anchored] * cosine[anchored] < 0.0))
-            signs = _anchored_signs(tree[:n, :n], normals, cosine, anchored, component, signs)
+            agree = signs * cosine > 0.0
+            disagreement = float(np.mean(~agree[anchored]))
+            trusted = disagreement <= UNTRUSTED or _abrupt(agree, anchored, rows, cols) > ABRUPT
+            if trusted:
+                signs = _anchored_signs(tree[:n, :n], normals, cosine, anchored, component, signs)
+    method = "mst"
+    if viewpoints is not None:
+        method = "mst+viewpoints" if trusted else "mst, viewpoints untrusted"
     return Orientation(
         normals=normals * signs[:, None],
         flipped=signs < 0,
         component=component,
         roots=roots.astype(np.int64),
-        method="mst" if viewpoints is None else "mst+viewpoints",
+        method=method,
         disagreement=disagreement,
     )
+
+
+def _abrupt(agree, anchored, rows, cols) -> float:
+    """Share of the graph edges (`rows`, `cols`) between two anchored points, at least one
+    of which disagrees with the tree, whose ends do not agree alike: where the tree joined
+    two sheets, sensors and tree part abruptly between neighbours that both face their
+    sensors; wrong sensors part from the tree only across grazing points."""
+    both = anchored[rows] & anchored[cols]
+    touched = both & ~(agree[rows] & agree[cols])
+    parted = touched & (agree[rows] != agree[cols])
+    return np.count_nonzero(parted) / max(np.count_nonzero(touched), 1)
 
 
 def _walk(tree: sparse.spmatrix, normals: np.ndarray, root_sign: np.ndarray) -> np.ndarray:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -20,12 +21,12 @@ from .density import (
     sector_distances,
 )
 from .distance import signed_distance
-from .errors import InputError, ReconstructionError
+from .errors import InputError, ReconstructionError, SurfaceWarning
 from .jets import evaluate_jets, fit_jets, orient_jets
 from .neighbours import knn, restrict, spatial_order
 from .normals import tangent_planes
 from .optimization import OptimizationResult, optimize_mesh
-from .orientation import orient_normals
+from .orientation import UNTRUSTED, orient_normals
 from .parameters import estimate_parameters
 from .prepare import cell_labels, crop, drop_outliers, group_means, reduce_chunks
 from .refine import refine_mesh
@@ -52,6 +53,10 @@ STAGES = (
 JET_STAGES = ("local fits", "refine")
 RIM_STAGES = ("rim",)
 OPTIMIZE_STAGE = "optimize"
+#: Gap-bridge points, as a share of the fitted points, from which a run warns of them (an
+#: evenly sampled sphere, pipe or torus makes 0.8-1 %, a scan with gaps between its lines
+#: tens of percent).
+BRIDGES_NOTED = 0.02
 #: Nearest neighbours found per point: enough to reach across the gap between scan lines.
 WIDE_K = 32
 #: Widest hole, over rho+delta, that the rim cut may not open: the signed distance is
@@ -239,6 +244,7 @@ def reconstruct(
         stages.close()
     mesh = Mesh(vertices=mesh.vertices + offset, faces=mesh.faces)
     stats.update(mesh_stats(mesh))
+    warn_surface_changes(stats, config)
     return Reconstruction(
         mesh=mesh,
         initial_mesh=initial_mesh,
@@ -351,6 +357,7 @@ def fit_planes(local, viewpoints, parameters, config, stats, stages) -> FittedPl
         stats["orientation_components"] = orientation.n_components
         if orientation.disagreement is not None:
             stats["orientation_disagreement"] = orientation.disagreement
+            stats["viewpoints_untrusted"] = int(orientation.disagreement > UNTRUSTED)
     jets = None
     if config.surface == "jets":
         with stages.stage("local fits"):
@@ -416,6 +423,53 @@ def distance_field(
         stats["grid_vertices"] = int(field_.values.size)
         stats["undefined_grid_vertices"] = int(np.count_nonzero(np.isnan(field_.values)))
     return field_, bridges
+
+
+def surface_changes(stats: dict, config: ReconstructionConfig) -> list[str]:
+    """One message per change a run made beyond Hoppe's method, with the option that turns
+    it off; `warn_surface_changes` issues them as `SurfaceWarning`. Gap bridges count from
+    ``BRIDGES_NOTED`` of the points: an evenly sampled cloud has about 1 % at random gaps."""
+    messages = []
+    if stats.get("gap_bridge_points", 0) > BRIDGES_NOTED * stats.get("phase1_points", 0):
+        messages.append(
+            f"{stats['gap_bridge_points']:,} points along chords across gaps in the sampling "
+            "count as data; gap_bridges=False (--no-gap-bridges) turns them off"
+        )
+    if stats.get("small_holes_filled"):
+        messages.append(
+            f"{stats['small_holes_filled']} small hole(s) closed; max_hole_edges=0 "
+            "(--max-hole-edges 0) keeps every hole open"
+        )
+    if stats.get("small_components_dropped"):
+        messages.append(
+            f"{stats['small_components_dropped']} component(s) of fewer than "
+            f"{config.min_component_faces} faces dropped; min_component_faces=0 "
+            "(--min-component-faces 0) keeps them"
+        )
+    if stats.get("orientation_components", 1) > 1:
+        messages.append(
+            f"the orientation graph has {stats['orientation_components']} components, each "
+            "oriented on its own (outward at its extreme point); viewpoints, or a larger "
+            "rho_delta or orient_k, join them"
+        )
+    if stats.get("viewpoints_untrusted"):
+        where = (
+            f"in {stats['viewpoints_untrusted']} of {stats['tiles']} tiles"
+            if "tiles" in stats
+            else f"on {stats['orientation_disagreement']:.1%} of the points facing a sensor"
+        )
+        messages.append(
+            f"the sensor positions and the spanning tree disagree {where} (over "
+            f"{UNTRUSTED:.0%} of them): the tree orients the normals, the sensors only set "
+            "each component's sign; check the viewpoints"
+        )
+    return messages
+
+
+def warn_surface_changes(stats: dict, config: ReconstructionConfig) -> None:
+    """Issue every `surface_changes` message as a `SurfaceWarning` to the caller's caller."""
+    for message in surface_changes(stats, config):
+        warnings.warn(message, SurfaceWarning, stacklevel=3)
 
 
 def data_support(fitted: FittedPlanes, bridges: np.ndarray, parameters: Parameters):

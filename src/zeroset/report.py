@@ -9,6 +9,7 @@ import numpy as np
 from ._validate import as_points, require_rng
 from .evaluate import compare_to_points
 from .optimization import OptimizationResult
+from .orientation import UNTRUSTED
 from .pipeline import Reconstruction
 
 __all__ = [
@@ -272,7 +273,9 @@ def _disagreement(share: float | None) -> str:
     if share is None:
         return ""
     line = f"; sensors and spanning tree disagree on {share:.2%} of the points facing a sensor"
-    if share > DISAGREEMENT_WARNING:
+    if share > UNTRUSTED:
+        line += f" (over {UNTRUSTED:.0%}: sensors not trusted, the tree orients the normals)"
+    elif share > DISAGREEMENT_WARNING:
         line += f" (over {DISAGREEMENT_WARNING:.0%}: are the sensors where --viewpoint says?)"
     return line
 

@@ -35,6 +35,7 @@ from .pipeline import (
     oriented_jets,
     repair,
     trim_rim,
+    warn_surface_changes,
 )
 from .prepare import crop as inside
 from .refine import refine_mesh
@@ -261,6 +262,7 @@ def reconstruct_tiled(
     mesh = Mesh(vertices=mesh.vertices + offset, faces=mesh.faces)
     stats.update(mesh_stats(mesh))
     timings["weld"] = time.perf_counter() - start
+    warn_surface_changes(stats, config)
     peaks: dict = {}
     for piece in pieces:
         peaks[piece["worker"]] = max(peaks.get(piece["worker"], 0.0), piece["peak_mib"])

@@ -194,7 +194,9 @@ class Orientation(_Frozen):
     roots : (C,) int64
         The point whose orientation seeded each component.
     method : str
-        ``"mst"`` or ``"mst+viewpoints"``.
+        ``"mst"``, ``"mst+viewpoints"``, or ``"mst, viewpoints untrusted"`` when the
+        sensors disagreed with the tree too often to anchor any point
+        (`zeroset.orientation.UNTRUSTED`).
     disagreement : float or None
         With viewpoints: the share of the points that face their sensor clearly whose
         sensor and the spanning tree alone (each component's sign set by its sensors' vote)
