@@ -281,6 +281,7 @@ def test_every_change_to_the_surface_names_its_off_switch():
         "gap_bridge_points": 50,
         "phase1_points": 1_000,
         "small_holes_filled": 3,
+        "widest_hole_filled": 0.05,
         "small_components_dropped": 2,
         "orientation_components": 4,
         "viewpoints_untrusted": 1,
@@ -290,4 +291,5 @@ def test_every_change_to_the_surface_names_its_off_switch():
     switches = ["--no-gap-bridges", "--max-hole-edges 0", "--min-component-faces 0", "orient_k"]
     for message, switch in zip(messages, switches + ["viewpoints"], strict=True):
         assert switch in message
+    assert "the widest 0.05 across" in messages[1]
     assert "23.0%" in messages[-1]

@@ -178,8 +178,9 @@ def test_holes_narrower_than_the_limit_are_closed(width, filled):
     holed = Mesh(vertices=mesh.vertices, faces=mesh.faces[keep])
     loops = topology.boundary_loops(holed.faces)
     assert len(loops) == 2 and max(len(loop) for loop in loops) > 6
-    closed, count = fill_small_holes(holed, 6, max_width=width)
+    closed, count, widest = fill_small_holes(holed, 6, max_width=width)
     assert count == filled
+    assert (0.25 < widest < 0.4) if filled else widest == 0.0  # the hole is 0.3 across
     assert len(topology.boundary_loops(closed.faces)) == 2 - filled
     assert topology.is_edge_manifold(closed.faces)
     assert topology.is_consistently_oriented(closed.faces)

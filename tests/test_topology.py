@@ -1,4 +1,5 @@
 import numpy as np
+import pytest
 
 from zeroset import topology
 from zeroset.repair import fill_small_holes, remove_small_components, split_nonmanifold_vertices
@@ -50,14 +51,15 @@ def test_small_hole_is_filled_and_large_one_kept():
     small = (np.abs(centre[:, 0] - 1.5) < 0.5) & (np.abs(centre[:, 1] - 1.5) < 0.5)
     mesh = Mesh(vertices=mesh.vertices, faces=mesh.faces[~small])
     assert len(topology.boundary_loops(mesh.faces)) == 2
-    filled, count = fill_small_holes(mesh, max_edges=4)
+    filled, count, widest = fill_small_holes(mesh, max_edges=4)
     assert count == 1
+    assert widest == pytest.approx(np.sqrt(2.0))  # the diagonal of the one missing square
     assert len(topology.boundary_loops(filled.faces)) == 1
     assert topology.is_edge_manifold(filled.faces) and topology.is_consistently_oriented(
         filled.faces
     )
-    kept, count = fill_small_holes(mesh, max_edges=3)
-    assert count == 0 and kept.n_faces == mesh.n_faces
+    kept, count, widest = fill_small_holes(mesh, max_edges=3)
+    assert count == 0 and kept.n_faces == mesh.n_faces and widest == 0.0
 
 
 def test_bowtie_vertex_is_split():

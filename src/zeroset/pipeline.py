@@ -437,7 +437,8 @@ def surface_changes(stats: dict, config: ReconstructionConfig) -> list[str]:
         )
     if stats.get("small_holes_filled"):
         messages.append(
-            f"{stats['small_holes_filled']} small hole(s) closed; max_hole_edges=0 "
+            f"{stats['small_holes_filled']} small hole(s) closed, the widest "
+            f"{stats.get('widest_hole_filled', 0.0):.4g} across; max_hole_edges=0 "
             "(--max-hole-edges 0) keeps every hole open"
         )
     if stats.get("small_components_dropped"):
@@ -486,7 +487,9 @@ def data_support(fitted: FittedPlanes, bridges: np.ndarray, parameters: Paramete
 def repair(mesh: Mesh, parameters, config, stats) -> Mesh:
     """Split bow-tie vertices, close small holes, drop tiny components; counts to `stats`."""
     mesh, stats["bowtie_vertices_split"] = split_nonmanifold_vertices(mesh)
-    mesh, stats["small_holes_filled"] = fill_small_holes(mesh, config.max_hole_edges)
+    mesh, stats["small_holes_filled"], stats["widest_hole_filled"] = fill_small_holes(
+        mesh, config.max_hole_edges
+    )
     mesh, stats["small_components_dropped"] = remove_small_components(
         mesh, config.min_component_faces
     )
@@ -510,10 +513,11 @@ def trim_rim(mesh: Mesh, points, radii, reach, parameters, config, stats) -> Mes
     mesh, split = split_nonmanifold_vertices(mesh)
     stats["bowtie_vertices_split"] += split
     if config.max_hole_edges > 0:  # holes Hoppe's rule could not resolve either stay shut
-        mesh, filled = fill_small_holes(
+        mesh, filled, widest = fill_small_holes(
             mesh, config.max_hole_edges, max_width=RIM_HOLE_WIDTH * parameters.rho_delta
         )
         stats["small_holes_filled"] += filled
+        stats["widest_hole_filled"] = max(stats["widest_hole_filled"], widest)
     mesh, dropped = remove_small_components(mesh, config.min_component_faces)
     stats["small_components_dropped"] += dropped
     if mesh.n_faces == 0:

@@ -72,7 +72,7 @@ def _width(mesh: Mesh, loop: np.ndarray) -> float:
 
 def fill_small_holes(
     mesh: Mesh, max_edges: int, *, max_width: float | None = None
-) -> tuple[Mesh, int]:
+) -> tuple[Mesh, int, float]:
     """Close boundary loops of at most `max_edges` edges, or at most `max_width` across,
     with a fan of triangles.
 
@@ -87,11 +87,13 @@ def fill_small_holes(
     mesh : Mesh
     filled : int
         Loops closed.
+    widest : float
+        The largest width of a loop closed, in data units; 0 when none was.
     """
     edges = edge_face_counts(mesh.faces)[0]
     existing = set(zip(edges[:, 0].tolist(), edges[:, 1].tolist(), strict=True))
     new_faces = []
-    filled = 0
+    filled, widest = 0, 0.0
     for loop in boundary_loops(mesh.faces):
         if len(loop) > max_edges and not (
             max_width is not None and len(loop) <= WIDTH_EDGES and _width(mesh, loop) <= max_width
@@ -106,8 +108,9 @@ def fill_small_holes(
                 new_faces.extend((ring[0], ring[i + 1], ring[i]) for i in range(1, len(ring) - 1))
                 existing |= diagonals
                 filled += 1
+                widest = max(widest, _width(mesh, ring))
                 break
     if not new_faces:
-        return mesh, 0
+        return mesh, 0, 0.0
     faces = np.concatenate([mesh.faces, np.array(new_faces, dtype=np.int64)])
-    return Mesh(vertices=mesh.vertices, faces=faces), filled
+    return Mesh(vertices=mesh.vertices, faces=faces), filled, widest

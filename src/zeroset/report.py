@@ -189,7 +189,13 @@ def format_report(report: dict) -> str:
         f"{stats['boundary_loops']} boundary loop(s), {stats['mesh_components']} component(s), "
         f"Euler characteristic {stats['euler_characteristic']}",
         _rim_line(stats),
-        f"repairs     {stats['small_holes_filled']} small hole(s) closed, "
+        f"repairs     {stats['small_holes_filled']} small hole(s) closed"
+        + (
+            f" (the widest {stats['widest_hole_filled']:.4g} across)"
+            if stats.get("widest_hole_filled")
+            else ""
+        )
+        + ", "
         f"{stats['small_components_dropped']} tiny component(s) dropped, "
         f"{stats['bowtie_vertices_split']} bow-tie vertex(es) split",
         *(optimization_lines(report["optimization"]) if "optimization" in report else []),
