@@ -126,21 +126,22 @@ def test_supports_shrink_to_follow_detail(monkeypatch):
 
 
 def test_crowded_pilots_measure_no_detail():
-    # Told that the points lie ten times farther apart than they do, every pilot holds far
+    # Told that the points are a hundred times sparser than they are, every pilot holds far
     # more points than expected, as next to a rotating scanner: detail is not measured.
     points = _rippled_points()
     params = estimate_parameters(points, rng=0)
+    density = 13.0 / (np.pi * params.spacing**2)  # 12 neighbours within the spacing
     fits = {
         factor: fit_jets(
             points,
             noise=params.quadric_noise,
             rho_delta=params.rho_delta,
-            spacing=factor * params.spacing,
+            density=density / factor,
         )
-        for factor in (1.0, 10.0)
+        for factor in (1.0, 100.0)
     }
-    assert fits[10.0].support > 1.6 * fits[1.0].support
-    assert " 0 pilots shrunk" in fits[10.0].notes[0]
+    assert fits[100.0].support > 1.6 * fits[1.0].support
+    assert " 0 pilots shrunk" in fits[100.0].notes[0]
 
 
 def test_vertices_lie_on_the_blended_surface():

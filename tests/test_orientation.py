@@ -81,6 +81,8 @@ def test_each_normal_faces_the_sensor_that_saw_it(rng):
     result = orient_normals(points, normals, k=12, viewpoints=sensors)
     assert np.all(np.einsum("ij,ij->i", result.normals, sensors - points) > 0)
     assert 0.4 < result.disagreement < 0.6
+    # High disagreement, but abrupt: the tree joined the two sides; the sensors are trusted.
+    assert result.method == "mst+viewpoints" and not result.viewpoints_untrusted
 
 
 def test_points_with_no_known_sensor_follow_their_neighbours(rng):

@@ -63,8 +63,8 @@ MIN_SUPPORT, MAX_SUPPORT = 1.0, 6.0
 #: detail counts where it exceeds this many times the noise variance. On smooth synthetic
 #: surfaces it stays below 2 in 99.9 % of the pilots; on the real scans its median is 10.
 DETAIL_SUPPORT, DETAIL_MARGIN = 0.6, 3.0
-#: Pilots holding more than this many times the points expected at the cloud's spacing
-#: (13 within the spacing, `zeroset.types.Parameters.spacing`) are crowded: next to a
+#: Pilots holding more than this many times the points expected at the cloud's density
+#: (`fit_jets`' `density`, from `zeroset.types.Parameters.spacing`) are crowded: next to a
 #: rotating scanner, where detail measured on the in-pipe scan and the SICK room scan shrank
 #: supports until the surface there broke up. Even clouds hold 1.3-1.8 times the expected
 #: count at the median pilot.
@@ -98,7 +98,7 @@ def fit_jets(
     noise: float,
     rho_delta: float,
     support: float | None = None,
-    spacing: float | None = None,
+    density: float | None = None,
 ) -> Jets:
     """Fit the jets of `points`, averaged in surface cells that a support holds 20-40 of.
 
@@ -125,10 +125,9 @@ def fit_jets(
         Neighbourhood radius; supports lie within [1, 6] rho_delta.
     support : float, optional
         One support radius for every jet instead of the bias-variance rule.
-    spacing : float, optional
-        The cloud's point spacing (`zeroset.types.Parameters.spacing`): pilots holding far
-        more points than it implies (``CROWDED``) measure no detail. By default every pilot
-        does.
+    density : float, optional
+        The cloud's points per unit area: pilots holding far more points than it implies
+        (``CROWDED``) measure no detail. By default every pilot does.
 
     Returns
     -------
@@ -159,7 +158,7 @@ def fit_jets(
         points, feet, rho_delta, (PILOT_SUPPORT, DETAIL_SUPPORT * PILOT_SUPPORT)
     )
     extent = float(np.ptp(points, axis=0).max())
-    crowded = np.inf if spacing is None else CROWDED * 13.0 * (pilots.radii / spacing) ** 2
+    crowded = np.inf if density is None else CROWDED * density * np.pi * pilots.radii**2
     pilot_h, note = _supports(pilots, *fits, crowded, sigma, rho_delta, extent)
     if support is not None:
         support = positive(support, "support")

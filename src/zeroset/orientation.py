@@ -10,7 +10,7 @@ from ._kernels.orientation import component_extremes, propagate_signs
 from ._validate import as_points, as_viewpoints, positive
 from .errors import InputError
 from .neighbours import build_tree, knn
-from .types import Neighbourhoods, Orientation
+from .types import VIEWPOINTS_UNTRUSTED, Neighbourhoods, Orientation
 
 __all__ = ["orient_normals"]
 
@@ -154,7 +154,7 @@ def orient_normals(
                 signs = _anchored_signs(tree[:n, :n], normals, cosine, anchored, component, signs)
     method = "mst"
     if viewpoints is not None:
-        method = "mst+viewpoints" if trusted else "mst, viewpoints untrusted"
+        method = "mst+viewpoints" if trusted else VIEWPOINTS_UNTRUSTED
     return Orientation(
         normals=normals * signs[:, None],
         flipped=signs < 0,

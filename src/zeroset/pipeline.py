@@ -357,7 +357,7 @@ def fit_planes(local, viewpoints, parameters, config, stats, stages) -> FittedPl
         stats["orientation_components"] = orientation.n_components
         if orientation.disagreement is not None:
             stats["orientation_disagreement"] = orientation.disagreement
-            stats["viewpoints_untrusted"] = int(orientation.disagreement > UNTRUSTED)
+            stats["viewpoints_untrusted"] = int(orientation.viewpoints_untrusted)
     jets = None
     if config.surface == "jets":
         with stages.stage("local fits"):
@@ -370,7 +370,7 @@ def fit_planes(local, viewpoints, parameters, config, stats, stages) -> FittedPl
                 noise=parameters.quadric_noise,
                 rho_delta=parameters.rho_delta,
                 support=config.fit_support,
-                spacing=parameters.spacing,
+                density=(config.radius_k + 1) / (np.pi * parameters.spacing**2),
             )
             stats["jets"] = jets.centres.shape[0]
             stats["fit_support"] = jets.support

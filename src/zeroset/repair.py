@@ -95,9 +95,10 @@ def fill_small_holes(
     new_faces = []
     filled, widest = 0, 0.0
     for loop in boundary_loops(mesh.faces):
-        if len(loop) > max_edges and not (
-            max_width is not None and len(loop) <= WIDTH_EDGES and _width(mesh, loop) <= max_width
-        ):
+        if len(loop) > max(max_edges, WIDTH_EDGES if max_width is not None else 0):
+            continue  # too long for either rule
+        width = _width(mesh, loop)
+        if len(loop) > max_edges and not width <= max_width:
             continue
         loop = loop.tolist()
         for shift in range(len(loop)):
@@ -108,7 +109,7 @@ def fill_small_holes(
                 new_faces.extend((ring[0], ring[i + 1], ring[i]) for i in range(1, len(ring) - 1))
                 existing |= diagonals
                 filled += 1
-                widest = max(widest, _width(mesh, ring))
+                widest = max(widest, width)
                 break
     if not new_faces:
         return mesh, 0, 0.0

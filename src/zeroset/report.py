@@ -181,7 +181,9 @@ def format_report(report: dict) -> str:
         *_surface_lines(report["config"].get("surface", "jets"), stats),
         *_tile_lines(stats),
         f"orientation {stats['orientation_components']} component(s)"
-        + _disagreement(stats.get("orientation_disagreement")),
+        + _disagreement(
+            stats.get("orientation_disagreement"), stats.get("viewpoints_untrusted")
+        ),
         f"grid        {stats['grid_vertices']:,} vertices evaluated, "
         f"{stats['undefined_grid_vertices']:,} undefined",
         f"mesh        {CONTOUR_NAMES[report['config']['contour']]}: "
@@ -274,13 +276,13 @@ def _tile_lines(stats: dict) -> list[str]:
     ]
 
 
-def _disagreement(share: float | None) -> str:
+def _disagreement(share: float | None, untrusted: int | None) -> str:
     """How often the sensors and the spanning tree alone orient a point oppositely."""
     if share is None:
         return ""
     line = f"; sensors and spanning tree disagree on {share:.2%} of the points facing a sensor"
-    if share > UNTRUSTED:
-        line += f" (over {UNTRUSTED:.0%}: sensors not trusted, the tree orients the normals)"
+    if untrusted:
+        line += f" (over {UNTRUSTED:.0%}, smoothly: sensors not trusted, the tree orients)"
     elif share > DISAGREEMENT_WARNING:
         line += f" (over {DISAGREEMENT_WARNING:.0%}: are the sensors where --viewpoint says?)"
     return line

@@ -179,6 +179,10 @@ class Jets(_Frozen):
         return float(np.median(self.radii))
 
 
+#: `Orientation.method` when viewpoints were given but not trusted.
+VIEWPOINTS_UNTRUSTED = "mst, viewpoints untrusted"
+
+
 @dataclass(frozen=True, eq=False)
 class Orientation(_Frozen):
     """Consistently oriented normals.
@@ -194,8 +198,8 @@ class Orientation(_Frozen):
     roots : (C,) int64
         The point whose orientation seeded each component.
     method : str
-        ``"mst"``, ``"mst+viewpoints"``, or ``"mst, viewpoints untrusted"`` when the
-        sensors disagreed with the tree too often to anchor any point
+        ``"mst"``, ``"mst+viewpoints"``, or ``VIEWPOINTS_UNTRUSTED`` when the sensors
+        disagreed with the tree too often, and smoothly, to anchor any point
         (`zeroset.orientation.UNTRUSTED`).
     disagreement : float or None
         With viewpoints: the share of the points that face their sensor clearly whose
@@ -209,6 +213,11 @@ class Orientation(_Frozen):
     roots: np.ndarray
     method: str
     disagreement: float | None = None
+
+    @property
+    def viewpoints_untrusted(self) -> bool:
+        """Whether viewpoints were given but oriented no point (`method`)."""
+        return self.method == VIEWPOINTS_UNTRUSTED
 
     @property
     def n_components(self) -> int:
