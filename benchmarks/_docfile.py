@@ -23,6 +23,7 @@ SECTIONS = (
     "tiles",
     "scans",
     "registered",
+    "inspection",
     "peers",
 )
 
@@ -57,6 +58,9 @@ and keeps the rest (this introduction included):
 - [Several scans with poses](#several-scans-with-poses): the ten Stanford bunny range scans
   with their poses, as given and registered, against Stanford's reconstruction; how often the
   sensors and the spanning tree orient a normal differently (`benchmarks/bench_registered.py`).
+- [Inspection](#inspection): dents, bulges and ovality found in simulated in-pipe scans and
+  elbows against the recorded truth, clean pipes and a tee, and a 20 m pipe of 2.26M points
+  reconstructed and inspected in one run (`benchmarks/bench_inspect.py`).
 - [Peers](#peers-zeroset-against-open3d-pymeshlab-poissonrecon-and-vtk): zeroset against the
   tools a user would otherwise pick (Open3D, PyMeshLab, Kazhdan's PoissonRecon with its
   trimming, VTK) on synthetic pipes, a sphere and a torus with exact ground truth and on real

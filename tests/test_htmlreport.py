@@ -2,16 +2,22 @@
 
 import base64
 import gzip
+import html
 import json
 import os
 import re
 import shutil
+from dataclasses import replace
+from io import BytesIO
 
 import numpy as np
 import pytest
 
 from zeroset import reconstruct
-from zeroset.htmlreport import write_html_report
+from zeroset.errors import InputError
+from zeroset.htmlreport import inspection_summary, write_html_report, write_inspection_report
+from zeroset.inspect import Defect, Defects, inspect_pipe
+from zeroset.io import read_mesh, write_mesh
 from zeroset.synthetic import sample_cylinder
 
 
@@ -23,6 +29,48 @@ def report(tmp_path_factory):
     path = tmp_path_factory.mktemp("report") / "report.html"
     write_html_report(path, result, points=points, source="pipe.ply")
     return path, result, points
+
+
+def _png(colour) -> bytes:
+    """A small PNG file of one colour."""
+    from PIL import Image
+
+    buffer = BytesIO()
+    Image.new("RGB", (24, 12), colour).save(buffer, format="PNG")
+    return buffer.getvalue()
+
+
+PICTURES = {"deviation map <unrolled>": _png((200, 30, 30)), "ovality": _png((30, 30, 200))}
+
+
+@pytest.fixture(scope="module")
+def inspected(tmp_path_factory):
+    """A pipe with a dent 15 mm deep, its inspection, and both kinds of inspection page.
+
+    Near the origin and without phase 2: `inspect_pipe` does not yet fit this pipe's
+    centreline far from the origin, nor on phase 2's coarser mesh."""
+    sample = sample_cylinder(8000, radius=0.25, length=1.0, noise=0.002, rng=6)
+    points = sample.points.copy()
+    angle = np.arctan2(points[:, 1], points[:, 0])
+    arc = (angle - 1.0) * 0.25  # metres round the wall from the dent's middle
+    dent = 0.015 * np.exp(-0.5 * (((points[:, 2] - 0.5) / 0.06) ** 2 + (arc / 0.06) ** 2))
+    points[:, :2] *= (1.0 - dent / 0.25)[:, None]
+    result = reconstruct(points, progress=False)
+    inspection = inspect_pipe(result.mesh, points)
+    folder = tmp_path_factory.mktemp("inspected")
+    report = write_html_report(
+        folder / "report.html", result, points=points, inspection=inspection, pictures=PICTURES
+    )
+    mesh = read_mesh(write_mesh(folder / "pipe.ply", result.mesh))
+    page = write_inspection_report(
+        folder / "inspection.html",
+        mesh,
+        inspection,
+        points=points,
+        pictures=PICTURES,
+        source="pipe.ply",
+    )
+    return report, page, mesh, inspection
 
 
 def _embedded(text, name):
@@ -37,11 +85,14 @@ def _unpack(entry):
     )
 
 
-def test_report_is_one_file_that_loads_nothing(report):
-    path, _, _ = report
-    text = path.read_text(encoding="utf-8")
+@pytest.mark.parametrize("page", ["reconstruction", "with inspection", "inspection"])
+def test_report_is_one_file_that_loads_nothing(report, inspected, page):
+    paths = {"reconstruction": report[0], "with inspection": inspected[0]}
+    text = paths.get(page, inspected[1]).read_text(encoding="utf-8")
     assert text.startswith("<!doctype html>")
-    assert not re.search(r"<(script|link|img|iframe)[^>]*\b(src|href)=", text, re.I)
+    # Nothing but data URIs (the pictures) in a src or href.
+    linked = r"<(script|link|img|iframe)[^>]*\b(src|href)=(?![\"']?data:)"
+    assert not re.search(linked, text, re.I)
     assert not re.search(r"\b(fetch|XMLHttpRequest|importScripts)\s*\(", text)
     assert "var THREE=" in text and "zeroset-report" in text  # three.js is inside
 
@@ -61,6 +112,103 @@ def test_embedded_arrays_are_the_meshes_and_numbers_the_report(report):
         assert _unpack(layer["boundary"]).shape[1] == 2
         assert np.nanmax(_unpack(layer["distance"])) < 0.05
     assert _unpack(layers["points"]).shape == points.shape
+    assert "inspection" not in numbers
+    assert not any("deviation" in layer for layer in layers.values())
+
+
+def test_report_of_an_inspection_carries_its_deviations_defects_and_pictures(inspected):
+    path, _, _, inspection = inspected
+    text = path.read_text(encoding="utf-8")
+    numbers, layers = _embedded(text, "zeroset-report"), _embedded(text, "zeroset-layers")
+    assert "phase 2" not in layers  # phase 1's mesh is the final one
+    deviation = _unpack(layers["phase 1"]["deviation"])
+    np.testing.assert_array_equal(deviation, inspection.vertex_deviation.astype(np.float32))
+    assert deviation.shape == (_unpack(layers["phase 1"]["vertices"]).shape[0],)
+    assert "distance" in layers["phase 1"]  # the distance colouring stays
+    assert "stats" in numbers and "parameters" in numbers
+    found = numbers["inspection"]
+    assert found["nominal_diameter"] == pytest.approx(2 * inspection.pipe.radius)
+    assert found["nominal_diameter"] == pytest.approx(0.5, abs=0.005)
+    assert found["length"] == pytest.approx(inspection.pipe.length)
+    assert found["threshold"] == pytest.approx(inspection.defects.threshold)
+    defects = inspection.defects.defects
+    assert len(found["defects"]) == len(defects) >= 1
+    for number, written, defect in zip(
+        range(1, len(defects) + 1), found["defects"], defects, strict=True
+    ):
+        assert written["number"] == number
+        assert written["kind"] == defect.kind
+        for name in ("axial", "clock", "depth", "axial_start", "axial_end", "width", "area"):
+            assert written[name] == pytest.approx(getattr(defect, name))
+        assert re.fullmatch(r"(1[0-2]|[1-9]):[0-5]\d", written["clock_time"])
+    deepest = found["defects"][0]
+    assert deepest["kind"] == "dent" and deepest["depth"] == pytest.approx(-0.012, abs=0.004)
+    # 12:00 is +y and 3:00 is -x (see zeroset.inspect), so the dent, at polar angle 1 rad
+    # (57 degrees from +x), is at 327 degrees: 10:55.
+    assert deepest["clock"] == pytest.approx(327.3, abs=6.0)
+    assert deepest["clock_time"].split(":")[0] in ("10", "11")
+    for caption, png in PICTURES.items():
+        assert f'src="data:image/png;base64,{base64.b64encode(png).decode()}"' in text
+        assert f"<figcaption>{html.escape(caption)}</figcaption>" in text
+    assert "<unrolled>" not in text  # captions are escaped
+
+
+def test_inspection_summary_reads_the_clock_and_has_no_nan(inspected):
+    *_, inspection = inspected
+    defect = Defect("bulge", 0.5, 0.0, 0.003, float("nan"), 0.4, 0.6, 350.0, 10.0, 0.09, 0.01)
+    clocks = (0.0, 90.0, 15.0, 359.9, 187.5)
+    defects = Defects(
+        tuple(replace(defect, clock=c) for c in clocks), (), 0.002, inspection.defects.labels
+    )
+    unfitted = np.full_like(inspection.ovality.ovality, np.nan)
+    no_station = replace(inspection.ovality, ovality=unfitted)
+    summary = inspection_summary(replace(inspection, defects=defects, ovality=no_station))
+    times = [d["clock_time"] for d in summary["defects"]]
+    assert times == ["12:00", "3:00", "12:30", "12:00", "6:15"]
+    assert summary["defects"][0]["uncertainty"] is None
+    assert summary["max_ovality"] is None
+    json.dumps(summary, allow_nan=False)  # ready for JSON as it is
+
+
+def test_deviation_goes_on_the_final_mesh_and_must_match_it(report, inspected, tmp_path):
+    _, result, _ = report
+    *_, inspection = inspected
+    deviation = np.linspace(-0.01, 0.02, result.mesh.n_vertices)
+    deviation[::7] = np.nan  # beyond the centreline's ends
+    path = write_html_report(
+        tmp_path / "phase2.html",
+        result,
+        report={"stats": {}},
+        inspection=replace(inspection, vertex_deviation=deviation),
+    )
+    layers = _embedded(path.read_text(encoding="utf-8"), "zeroset-layers")
+    written = _unpack(layers["phase 2"]["deviation"])
+    np.testing.assert_array_equal(written, deviation.astype(np.float32))  # NaN too
+    assert "deviation" not in layers["phase 1"]
+    with pytest.raises(InputError, match=r"deviations of \d+ vertices; the mesh shown has \d+"):
+        write_html_report(tmp_path / "not.html", result, report={}, inspection=inspection)
+    with pytest.raises(TypeError, match="PNG bytes"):
+        write_html_report(tmp_path / "not.html", result, report={}, pictures={"x": b"GIF89a"})
+    assert not (tmp_path / "not.html").exists()
+
+
+def test_inspection_report_of_a_mesh_read_from_a_file(inspected):
+    _, path, mesh, inspection = inspected
+    text = path.read_text(encoding="utf-8")
+    numbers, layers = _embedded(text, "zeroset-report"), _embedded(text, "zeroset-layers")
+    assert set(layers) == {"inspected", "points"}  # no reconstruction: no normals, no phases
+    assert set(numbers) == {"source", "inspection"}
+    assert numbers["inspection"] == json.loads(json.dumps(inspection_summary(inspection)))
+    layer = layers["inspected"]
+    np.testing.assert_array_equal(_unpack(layer["faces"]), mesh.faces)
+    vertices = _unpack(layer["vertices"]).astype(np.float64)
+    shift = mesh.vertices.mean(axis=0) - vertices.mean(axis=0)  # shown about their middle
+    np.testing.assert_allclose(vertices + shift, mesh.vertices, atol=1e-6)
+    deviation = _unpack(layer["deviation"])
+    np.testing.assert_array_equal(deviation, inspection.vertex_deviation.astype(np.float32))
+    assert _unpack(layer["boundary"]).shape[0] > 0  # an open pipe: two rims
+    assert "<title>zeroset inspection: pipe.ply</title>" in text
+    assert text.count("<figure>") == len(PICTURES)
 
 
 def _browser():
@@ -99,23 +247,28 @@ def _canvas(browser):
         return np.asarray(image.convert("RGBA"))
 
 
-def test_viewer_draws_and_toggles_offline_without_console_errors(report):
+def _open(browser, path):
+    """Open a report offline and wait until the viewer is ready (or failed)."""
     from selenium.webdriver.support.ui import WebDriverWait
 
+    browser.set_network_conditions(
+        offline=True, latency=0, download_throughput=0, upload_throughput=0
+    )
+    browser.get(path.as_uri())
+    WebDriverWait(browser, 60).until(
+        lambda b: b.execute_script(
+            "return (window.zerosetViewer && window.zerosetViewer.ready) "
+            "|| document.body.dataset.error"
+        )
+    )
+    assert browser.execute_script("return document.body.dataset.error || null") is None
+
+
+def test_viewer_draws_and_toggles_offline_without_console_errors(report):
     path, _, _ = report
     browser = _browser()
     try:
-        browser.set_network_conditions(
-            offline=True, latency=0, download_throughput=0, upload_throughput=0
-        )
-        browser.get(path.as_uri())
-        WebDriverWait(browser, 60).until(
-            lambda b: b.execute_script(
-                "return (window.zerosetViewer && window.zerosetViewer.ready) "
-                "|| document.body.dataset.error"
-            )
-        )
-        assert browser.execute_script("return document.body.dataset.error || null") is None
+        _open(browser, path)
         layers = browser.execute_script("return window.zerosetViewer.layers")
         assert {"phase 1 mesh", "phase 2 mesh", "points", "normals", "boundaries"} <= set(layers)
         shown = _canvas(browser)
@@ -128,6 +281,52 @@ def test_viewer_draws_and_toggles_offline_without_console_errors(report):
         browser.execute_script("window.zerosetViewer.setLayer('phase 1 mesh', true)")
         assert np.abs(_canvas(browser).astype(int) - hidden).sum() > 0
         assert "Parameters" in browser.find_element("id", "numbers").text
+        errors = [e for e in browser.get_log("browser") if e["level"] == "SEVERE"]
+        assert errors == []
+    finally:
+        browser.quit()
+
+
+def test_viewer_colours_by_deviation_first_and_shows_the_inspection(inspected):
+    report, page, _, inspection = inspected
+    checked = "return document.querySelector(`input[data-layer='${arguments[0]}']`).checked"
+    browser = _browser()
+    try:
+        _open(browser, page)
+        layers = browser.execute_script("return window.zerosetViewer.layers")
+        assert layers == [
+            "inspected mesh", "points", "boundaries", "colour by distance", "colour by deviation"
+        ]
+        assert browser.execute_script(checked, "colour by deviation")
+        legend = browser.find_element("id", "legend").text
+        limits = r"deviation: blue \u2212([\d.]+) mm \(inward\) \u2026 red \+([\d.]+) mm"
+        magnitude = np.abs(inspection.vertex_deviation.astype(np.float32))
+        magnitude = np.sort(magnitude[np.isfinite(magnitude)])
+        p99 = 1000 * magnitude[int(0.99 * magnitude.size)]  # the viewer's 99th percentile
+        shown = re.search(limits, legend).groups()
+        assert shown[0] == shown[1] and float(shown[0]) == pytest.approx(p99, rel=0.06)
+        pixels = _canvas(browser)[..., :3].astype(int)
+        drawn = pixels.sum(axis=2) < 3 * 250
+        # Mostly near the nominal wall: near white, not the plain material's blue (B - R = 127).
+        assert np.median(np.abs(pixels[..., 2] - pixels[..., 0])[drawn]) < 40
+        numbers = browser.find_element("id", "numbers").text
+        assert "Defects" in numbers and "Parameters" not in numbers
+        assert f"{1000 * inspection.defects.defects[0].depth:.1f} \u00b1" in numbers
+        browser.execute_script("window.zerosetViewer.setLayer('colour by distance', true)")
+        assert not browser.execute_script(checked, "colour by deviation")  # one at a time
+        assert "distance" in browser.find_element("id", "legend").text
+        assert np.abs(_canvas(browser)[..., :3].astype(int) - pixels).sum() > 0
+        browser.execute_script("window.zerosetViewer.setLayer('colour by distance', false)")
+        assert not browser.find_element("id", "legend").is_displayed()
+
+        _open(browser, report)
+        assert browser.execute_script(checked, "colour by deviation")
+        numbers = browser.find_element("id", "numbers").text
+        assert "Inspection" in numbers and "Parameters" in numbers
+        pictures = browser.execute_script(
+            "return Array.from(document.querySelectorAll('#pictures img'), (i) => i.naturalWidth)"
+        )
+        assert pictures == [24, 24]  # the PNGs decode
         errors = [e for e in browser.get_log("browser") if e["level"] == "SEVERE"]
         assert errors == []
     finally:

@@ -1,6 +1,9 @@
-"""Synthetic samples: ground truth meshes, exact distances, the simulated pipe scan, outliers."""
+"""Synthetic samples: ground truth meshes, exact distances, the simulated pipe scan, outliers,
+damaged pipes and their truth records."""
 
+import json
 import math
+import re
 
 import numpy as np
 import pytest
@@ -9,23 +12,38 @@ from hypothesis import strategies as st
 from scipy.spatial import cKDTree
 
 from zeroset import io, topology
+from zeroset.cli import main
 from zeroset.errors import InputError
 from zeroset.evaluate import points_to_mesh_distance
 from zeroset.synthetic import (
     MAX_FACES,
+    Defect,
     Sample,
     add_outliers,
+    damaged_pipe,
     hokuyo_accuracy,
     sample_cylinder,
     sample_elbow,
     sample_sphere,
     sample_tee,
     sample_torus,
+    scan_damaged_pipe,
     scan_pipe,
     scan_pipe_size,
     two_spheres,
     write_sample,
 )
+
+# A dent, a bulge and a 3 % ovality on part of the pipe, for the damaged generators.
+DAMAGE = {
+    "defects": [
+        Defect("dent", axial=0.8, clock=90.0, depth=0.01, width=0.2),
+        Defect("bulge", axial=1.3, clock=200.0, depth=0.006, width=0.15),
+    ],
+    "ovality": 0.03,
+    "ovality_clock": 30.0,
+    "ovality_span": (0.2, 0.9),
+}
 
 # name: (generator(rng, **keywords), boundary loops, a coarse truth spacing for quick checks)
 GENERATORS = {
@@ -48,8 +66,27 @@ GENERATORS = {
         2,
         0.02,
     ),
+    "damaged pipe": (lambda rng, **kw: damaged_pipe(3000, rng=rng, **DAMAGE, **kw), 2, 0.02),
+    "damaged elbow": (
+        lambda rng, **kw: damaged_pipe(3000, shape="elbow", rng=rng, **DAMAGE, **kw),
+        2,
+        0.02,
+    ),
+    "damaged scan": (
+        lambda rng, noise=0.0, **kw: scan_damaged_pipe(
+            rotation_step=20.0,
+            stations=(0.7, 1.3),
+            noise_scale=noise / 0.005,
+            rng=rng,
+            **DAMAGE,
+            **kw,
+        ),
+        2,
+        0.02,
+    ),
 }
 NAMES = list(GENERATORS)
+SCANS = ("scan", "damaged scan")
 
 
 def _make(name, rng=0, **keywords):
@@ -140,7 +177,7 @@ def test_same_seed_same_sample_and_other_seed_differs(name):
     assert not np.array_equal(a.points, c.points)
 
 
-@pytest.mark.parametrize("name", [name for name in NAMES if name != "scan"])
+@pytest.mark.parametrize("name", [name for name in NAMES if name not in SCANS])
 def test_noisy_points_lie_within_a_few_sigma(name):
     sigma = 0.005
     sample = _make(name, rng=5, noise=sigma)
@@ -292,6 +329,223 @@ def test_exact_scan_lies_on_the_wall_and_viewpoints_circle_the_axis():
     assert (radial < 0).sum() > 1000
 
 
+# --- damaged pipes ---------------------------------------------------------------------------
+
+R = 0.25
+
+
+def _clock(points):
+    """Clock angles in degrees of points around the z axis: 12 o'clock +y, 3 o'clock -x."""
+    return np.degrees(np.arctan2(points[:, 1], points[:, 0]) - 0.5 * np.pi) % 360.0
+
+
+def _angle_between(a, b):
+    """Difference of clock angles in degrees, in [-180, 180)."""
+    return (np.asarray(a) - b + 180.0) % 360.0 - 180.0
+
+
+@pytest.mark.parametrize("kind, clock", [("dent", 0.0), ("dent", 90.0), ("bulge", 235.0)])
+def test_a_defect_peaks_where_its_record_says(kind, clock):
+    defect = Defect(kind, axial=1.2, clock=clock, depth=0.012, width=0.15)
+    sample = damaged_pipe(200_000, defects=[defect], rng=1)
+    rho = np.hypot(sample.points[:, 0], sample.points[:, 1])
+    sign = -1.0 if kind == "dent" else 1.0
+    change = sign * (rho - R)
+    peak = np.argmax(change)
+    assert sample.points[peak, 2] == pytest.approx(1.2, abs=0.006)  # points are ~4 mm apart
+    assert abs(_angle_between(_clock(sample.points[peak : peak + 1])[0], clock)) < 1.5
+    assert change[peak] == pytest.approx(0.012, abs=2e-4)
+    # The patch is round and centred there: its weighted centre is within a millimetre.
+    arc = R * np.radians(_angle_between(_clock(sample.points), clock))
+    weight = np.maximum(change - 0.006, 0.0)
+    assert np.average(arc, weights=weight) == pytest.approx(0.0, abs=1e-3)
+    assert np.average(sample.points[:, 2], weights=weight) == pytest.approx(1.2, abs=1e-3)
+    # 12 o'clock is +y and 3 o'clock -x on a pipe along +z.
+    c = math.radians(clock)
+    np.testing.assert_allclose(
+        sample.points[peak, :2] / rho[peak], [-math.sin(c), math.cos(c)], atol=0.03
+    )
+    (record,) = sample.truth_record["defects"]
+    assert record["kind"] == kind and record["clock"] == clock and record["depth"] == 0.012
+    np.testing.assert_allclose(
+        record["centre"], [-R * math.sin(c), R * math.cos(c), 1.2], atol=1e-12
+    )
+    # Beyond the patch the wall is untouched.
+    outside = np.hypot(arc, sample.points[:, 2] - 1.2) > 0.075
+    assert np.abs(rho[outside] - R).max() < 1e-12
+
+
+def test_ovality_sets_the_diameters_on_its_span_and_fades_beyond():
+    sample = damaged_pipe(300_000, ovality=0.03, ovality_clock=30.0, ovality_span=(0.6, 1.4), rng=2)
+    z = sample.points[:, 2]
+    rho = np.hypot(sample.points[:, 0], sample.points[:, 1])
+    clock = _clock(sample.points)
+    inside = (z > 0.65) & (z < 1.35)
+    # D(clock) = r(clock) + r(clock + 180), from the mean radius in 2 degree bins.
+    bins = np.bincount((clock[inside] // 2).astype(int), weights=rho[inside], minlength=180)
+    bins /= np.bincount((clock[inside] // 2).astype(int), minlength=180)
+    diameter = bins[:90] + bins[90:]
+    assert diameter.max() - diameter.min() == pytest.approx(0.03 * 2 * R, rel=0.01)
+    assert abs(_angle_between(2.0 * np.argmax(diameter) + 1.0, 30.0)) <= 2.0
+    # One radius beyond the span the pipe is round again.
+    beyond = (z < 0.6 - R) | (z > 1.4 + R)
+    assert beyond.sum() > 50_000 and np.abs(rho[beyond] - R).max() < 1e-12
+    assert np.abs(rho - R).max() <= 0.5 * 0.03 * R + 1e-12
+    assert sample.truth_record["ovality"] == {
+        "value": 0.03,
+        "clock": 30.0,
+        "span": [0.6, 1.4],
+        "taper": R,
+    }
+
+
+def test_elbow_defects_sit_on_the_undamaged_wall_at_their_clock():
+    leg, bend_radius = 0.5, 0.6
+    bend_45 = leg + bend_radius * math.pi / 4
+    second_leg = leg + bend_radius * math.pi / 2 + 0.25
+    defects = [
+        Defect("dent", axial=0.3, clock=270.0, depth=0.01, width=0.1),
+        Defect("dent", axial=bend_45, clock=0.0, depth=0.01, width=0.1),
+        Defect("dent", axial=bend_45 + 0.2, clock=90.0, depth=0.01, width=0.1),
+        Defect("dent", axial=second_leg, clock=90.0, depth=0.01, width=0.1),
+    ]
+    sample = damaged_pipe(200_000, shape="elbow", defects=defects, rng=3)
+    h = math.sqrt(0.5)
+    a = (bend_45 + 0.2 - leg) / bend_radius
+    expected = [
+        [R, 0.0, 0.3],  # 9 o'clock on the first leg is +x
+        [bend_radius * (1 - h), R, leg + bend_radius * h],  # 12 o'clock is +y on the bend
+        # 3 o'clock on the bend points away from the bend's centre
+        [bend_radius - (bend_radius + R) * math.cos(a), 0.0, leg + (bend_radius + R) * math.sin(a)],
+        [bend_radius + 0.25, 0.0, leg + bend_radius + R],  # and is +z on the second leg
+    ]
+    centres = np.array([d["centre"] for d in sample.truth_record["defects"]])
+    np.testing.assert_allclose(centres, expected, atol=1e-12)
+    assert sample.truth_record["kind"] == "damaged elbow"
+    # Each dent's deepest point (measured against the undamaged elbow) is at its centre.
+    undamaged = sample_elbow(10, radius=R, bend_radius=bend_radius, leg=leg, rng=0)
+    depth = undamaged.distance(sample.points)
+    for centre in centres:
+        near = np.flatnonzero(np.linalg.norm(sample.points - centre, axis=1) < 0.05)
+        deepest = near[np.argmax(depth[near])]
+        assert np.linalg.norm(sample.points[deepest] - centre) < 0.016  # depth plus spacing
+        assert depth[deepest] == pytest.approx(0.01, abs=2e-4)
+
+
+def test_without_damage_the_damaged_pipes_are_the_plain_ones():
+    for damaged, plain in [
+        (damaged_pipe(2000, length=1.0, rng=4), sample_cylinder(2000, length=1.0, rng=4)),
+        (damaged_pipe(2000, shape="elbow", rng=4), sample_elbow(2000, rng=4)),
+    ]:
+        np.testing.assert_allclose(damaged.points, plain.points, atol=1e-15)
+        np.testing.assert_allclose(damaged.normals, plain.normals, atol=1e-15)
+
+
+def test_damaged_scan_returns_the_first_wall_point_along_each_beam():
+    dent = Defect("dent", axial=1.0, clock=0.0, depth=0.02, width=0.1)
+    scan = scan_damaged_pipe(
+        defects=[dent], stations=[0.1, 1.0, 1.9], rotation_step=30.0, noise_scale=0.0
+    )
+
+    def outside(points):
+        """How far points are outside the dented wall, from the dent's definition."""
+        arc = R * np.radians(_angle_between(_clock(points), 0.0))
+        d = np.hypot(arc, points[:, 2] - 1.0)
+        wall = R - 0.02 * np.cos(np.pi * d / 0.1) ** 2 * (d < 0.05)
+        return np.hypot(points[:, 0], points[:, 1]) - wall
+
+    assert np.abs(outside(scan.points)).max() < 1e-11
+    assert scan.distance(scan.points).max() < 1e-11
+    # No beam passes through the dent before its hit (a beam keeps its clock).
+    seen = np.abs(R * np.radians(_angle_between(_clock(scan.points), 0.0))) < 0.05
+    assert seen.sum() > 1000
+    f = np.concatenate([np.linspace(0.0, 0.99, 300), 1.0 - np.geomspace(1e-2, 1e-3, 30)])
+    start, end = scan.viewpoints[seen], scan.points[seen]
+    path = start[:, None] + f[:, None] * (end - start)[:, None]
+    worst = outside(path.reshape(-1, 3)).max()
+    assert worst < 0.0
+    # The deepest point the scanner sees is the dent's centre.
+    rho = np.hypot(scan.points[:, 0], scan.points[:, 1])
+    assert rho.min() == pytest.approx(R - 0.02, abs=5e-4)
+    assert sorted(set(scan.viewpoints[:, 2])) == [0.1, 1.0, 1.9]
+
+
+def test_scan_stations_are_concatenated_in_order():
+    keywords = {"defects": DAMAGE["defects"], "rotation_step": 30.0, "noise_scale": 0.0}
+    both = scan_damaged_pipe(stations=[1.3, 0.4], **keywords)
+    parts = [scan_damaged_pipe(stations=[z0], **keywords) for z0 in (1.3, 0.4)]
+    for field in ("points", "normals", "viewpoints"):
+        np.testing.assert_array_equal(
+            getattr(both, field), np.concatenate([getattr(part, field) for part in parts])
+        )
+    assert both.truth_record["stations"] == [1.3, 0.4]
+    assert scan_damaged_pipe(**keywords).truth_record["stations"] == [1.0]
+
+
+def test_write_sample_writes_the_truth_record_as_json(tmp_path):
+    sample = damaged_pipe(500, shape="elbow", noise=0.001, rng=7, **DAMAGE)
+    write_sample(sample, tmp_path / "elbow.ply", spacing=0.03)
+    record = json.loads((tmp_path / "elbow-truth.json").read_text())
+    assert record == sample.truth_record
+    assert (record["kind"], record["seed"], record["noise"]) == ("damaged elbow", 7, 0.001)
+    assert [d["kind"] for d in record["defects"]] == ["dent", "bulge"]
+    assert "12 o'clock (0) is +y" in record["clock_convention"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == [
+        "elbow-truth.json",
+        "elbow-truth.ply",
+        "elbow.ply",
+    ]
+    assert "seed" not in damaged_pipe(10, rng=np.random.default_rng(0)).truth_record
+
+
+def test_cli_synth_writes_a_damaged_scan_and_its_truth_record(tmp_path, capsys):
+    out = tmp_path / "scan.ply"
+    damage = ["--dent", "1.0,90,0.01,0.2", "--bulge", "0.5,180,0.005,0.1", "--ovality", "0.02,45"]
+    argv = ["--stations", "0.8,1.2", "--rotation-step", "30", "--seed", "3"]
+    assert main(["synth", "damaged-pipe-scan", "-o", str(out), *damage, *argv]) == 0
+    assert "scan-truth.json" in capsys.readouterr().out
+    record = json.loads((tmp_path / "scan-truth.json").read_text())
+    assert [(d["kind"], d["axial"], d["clock"]) for d in record["defects"]] == [
+        ("dent", 1.0, 90.0),
+        ("bulge", 0.5, 180.0),
+    ]
+    assert record["ovality"]["value"] == 0.02 and record["ovality"]["clock"] == 45.0
+    assert record["stations"] == [0.8, 1.2] and record["seed"] == 3
+    expected = scan_damaged_pipe(
+        defects=[Defect("dent", 1.0, 90.0, 0.01, 0.2), Defect("bulge", 0.5, 180.0, 0.005, 0.1)],
+        ovality=0.02,
+        ovality_clock=45.0,
+        stations=[0.8, 1.2],
+        rotation_step=30.0,
+        rng=3,
+    )
+    cloud = io.read_points(out)
+    np.testing.assert_array_equal(cloud.points, expected.points)
+    np.testing.assert_array_equal(cloud.viewpoints, expected.viewpoints)
+    assert io.read_mesh(tmp_path / "scan-truth.ply").n_faces > 1000
+
+
+@pytest.mark.parametrize(
+    "kind, options, message",
+    [
+        ("damaged-pipe-scan", ["--dent", "1.0,90,0.01"], "--dent must be AXIAL,CLOCK,DEPTH,WIDTH"),
+        ("damaged-pipe", ["--bulge", "1,2,x,4"], "--bulge must be AXIAL,CLOCK,DEPTH,WIDTH"),
+        ("damaged-pipe", ["--dent", "1,400,0.01,0.2"], "--dent 1,400,0.01,0.2: defect clock"),
+        ("damaged-elbow", ["--ovality", "0.1,2,3"], "--ovality must be VALUE or VALUE,CLOCK"),
+        ("damaged-pipe-scan", ["--stations", "0.5,9"], r"stations must be heights in \[0, "),
+        ("damaged-pipe", ["--stations", "0.5"], "--stations goes with damaged-pipe-scan"),
+        ("sphere", ["--dent", "1,0,0.01,0.2"], "--dent, --bulge and --ovality go with"),
+        ("damaged-elbow", ["--length", "3"], "--length does not apply to damaged-elbow"),
+    ],
+)
+def test_cli_synth_refuses_bad_damage_in_one_line(kind, options, message, tmp_path, capsys):
+    assert main(["synth", kind, "-o", str(tmp_path / "s.ply"), "--points", "100", *options]) == 2
+    error = capsys.readouterr().err
+    assert error.startswith("zeroset: error: ") and error.count("\n") == 1
+    assert re.search(message, error)
+    assert list(tmp_path.iterdir()) == []
+
+
 # --- outliers, writing, errors --------------------------------------------------------------
 
 
@@ -373,11 +627,40 @@ def test_write_sample_and_write_points_refuse_other_formats(tmp_path):
         (lambda: scan_pipe(noise_scale=-1.0), "noise_scale must be a number >= 0"),
         (lambda: add_outliers(np.zeros((0, 3)), 0.1), "points is empty"),
         (lambda: sample_sphere(10, rng=0).truth_mesh(1e-6), "would need about"),
+        (lambda: Defect("crack", 1.0, 0.0, 0.01, 0.1), "defect kind must be one of"),
+        (lambda: Defect("dent", 1.0, 360.0, 0.01, 0.1), r"clock must be degrees in \[0, 360\)"),
+        (lambda: Defect("dent", -1.0, 0.0, 0.01, 0.1), "defect axial must be a distance >= 0"),
+        (lambda: Defect("dent", 1.0, 0.0, 0.0, 0.1), "defect depth must be a positive number"),
+        (lambda: damaged_pipe(10, shape="tee"), "shape must be 'straight' or 'elbow'"),
+        (
+            lambda: damaged_pipe(10, defects=[Defect("dent", 2.5, 0.0, 0.01, 0.1)]),
+            "beyond the centreline's end",
+        ),
+        (
+            lambda: damaged_pipe(10, defects=[Defect("dent", 1.0, 0.0, 0.3, 0.1)]),
+            "through the axis",
+        ),
+        (
+            lambda: damaged_pipe(10, shape="elbow", defects=[Defect("bulge", 0.5, 0.0, 0.4, 0.1)]),
+            "beyond bend_radius",
+        ),
+        (lambda: damaged_pipe(10, ovality=1.5), r"ovality must be a number in \[0, 1\)"),
+        (lambda: damaged_pipe(10, ovality_span=(1.5, 0.5)), "ovality_span must satisfy"),
+        (
+            lambda: scan_damaged_pipe(offset=0.2, defects=[Defect("dent", 1.0, 0.0, 0.06, 0.1)]),
+            "offset must be below radius less",
+        ),
+        (lambda: scan_damaged_pipe(stations=[3.0]), r"stations must be heights in \[0, "),
     ],
 )
 def test_bad_input_is_refused_with_a_message(make, message):
     with pytest.raises(InputError, match=message):
         make()
+
+
+def test_defects_must_be_defects():
+    with pytest.raises(TypeError, match="defects must be Defect instances"):
+        damaged_pipe(10, defects=[("dent", 1.0, 0.0, 0.01, 0.1)])
 
 
 def test_a_hand_made_sample_has_no_truth():

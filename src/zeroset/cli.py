@@ -138,6 +138,13 @@ def _parser() -> argparse.ArgumentParser:
         action="store_true",
         help="run phase 2, mesh optimisation (Hoppe 1993), on every point left after --crop",
     )
+    rec.add_argument(
+        "--inspect",
+        type=Path,
+        metavar="DIR",
+        help="inspect the mesh as a pipe (see 'zeroset inspect') and write the results to DIR",
+    )
+    _add_inspection_options(rec)
     _add_config_options(rec)
     rec.set_defaults(command="reconstruct", run=_run_reconstruct)
 
@@ -184,6 +191,28 @@ def _parser() -> argparse.ArgumentParser:
     ren.add_argument("--size", default="1200x600", help="picture size WIDTHxHEIGHT in pixels")
     ren.set_defaults(command="render", run=_run_render)
 
+    ins = commands.add_parser(
+        "inspect",
+        parents=[common, writes],
+        help="inspect a pipe: centreline, deviation, ovality and defects",
+        description="Fit a pipe's centreline and nominal diameter to its mesh, measure "
+        "every vertex's (and point's) deviation from the nominal pipe and the ovality per "
+        "station, and find the dents and bulges beyond the noise. Writes defects.csv, "
+        "ovality.csv, inspection.json, deviation-map.png (the unrolled wall), ovality.png, "
+        "deviation.png (the mesh coloured by deviation) and report.html to DIR.",
+    )
+    ins.add_argument("mesh", type=Path, help="the pipe's wall: .ply .obj .stl .off")
+    ins.add_argument(
+        "points",
+        type=Path,
+        nargs="?",
+        help=points_help.replace("points", "the scan the mesh was made from (better depths "
+                                 "and noise-based thresholds)", 1),
+    )  # fmt: skip
+    ins.add_argument("-o", "--output", type=Path, required=True, metavar="DIR", help="folder")
+    _add_inspection_options(ins)
+    ins.set_defaults(command="inspect", run=_run_inspect)
+
     demo = commands.add_parser(
         "demo",
         parents=[common],
@@ -201,7 +230,9 @@ def _parser() -> argparse.ArgumentParser:
         parents=[common, writes],
         help="write a synthetic cloud and its true surface",
         description="Write seeded synthetic points (PLY, with normals and, for scans, sensor "
-        "positions) and the true surface beside them as <stem>-truth.ply.",
+        "positions) and the true surface beside them as <stem>-truth.ply; the damaged-* kinds "
+        "also write their defects as <stem>-truth.json. Clock angles are degrees clockwise "
+        "looking along the pipe from its start, 12 o'clock (0) being +y.",
     )
     synth.add_argument("kind", choices=sorted(SYNTH_KINDS), help="what to sample")
     synth.add_argument("-o", "--output", type=Path, required=True, help="points file (.ply)")
@@ -218,15 +249,38 @@ def _parser() -> argparse.ArgumentParser:
         "--noise-scale",
         type=float,
         default=1.0,
-        help="scale of the scanner's range noise model (pipe-scan)",
+        help="scale of the scanner's range noise model (scans)",
     )
     synth.add_argument(
         "--rotation-step",
         type=float,
         default=1.0,
-        help="degrees between scan lines (pipe-scan); 1 gives ~184k points",
+        help="degrees between scan lines (scans); 1 gives ~184k points per station",
     )
     synth.add_argument("--radius", type=float, help="pipe or sphere radius in metres")
+    synth.add_argument(
+        "--length", type=float, help="pipe length in metres (cylinder, tee, straight pipes)"
+    )
+    for kind in ("dent", "bulge"):
+        synth.add_argument(
+            f"--{kind}",
+            action="append",
+            default=[],
+            metavar="AXIAL,CLOCK,DEPTH,WIDTH",
+            help=f"add a {kind} (damaged-*): centre at AXIAL metres along the centreline and "
+            f"CLOCK degrees, DEPTH and WIDTH (patch diameter) in metres; repeatable",
+        )
+    synth.add_argument(
+        "--ovality",
+        metavar="VALUE[,CLOCK]",
+        help="(D_max - D_min) / D of the whole pipe, major axis at CLOCK degrees "
+        "(default 0) (damaged-*)",
+    )
+    synth.add_argument(
+        "--stations",
+        metavar="Z0,Z1,...",
+        help="scanner heights in metres (damaged-pipe-scan; default: the pipe's middle)",
+    )
     synth.add_argument("--outliers", type=float, default=0.0, help="share of uniform outliers")
     synth.add_argument("--seed", type=int, default=0, help="seed")
     synth.set_defaults(command="synth", run=_run_synth)
@@ -270,7 +324,27 @@ SYNTH_KINDS = {
     "elbow": "sample_elbow",
     "tee": "sample_tee",
     "pipe-scan": "scan_pipe",
+    "damaged-pipe": "damaged_pipe",
+    "damaged-elbow": "damaged_pipe",
+    "damaged-pipe-scan": "scan_damaged_pipe",
 }
+
+
+def _add_inspection_options(parser: argparse.ArgumentParser) -> None:
+    """Add the options of a pipe inspection (``inspect``, ``reconstruct --inspect``)."""
+    group = parser.add_argument_group("inspection")
+    group.add_argument(
+        "--nominal-diameter", type=float, metavar="D", help="pipe's inner diameter, in the "
+        "data's units (default: the median measured diameter)",
+    )  # fmt: skip
+    group.add_argument(
+        "--threshold", type=float, metavar="MM", help="smallest depth reported as a defect, "
+        "in mm (default: 4.5 standard errors of the local noise)",
+    )  # fmt: skip
+    group.add_argument(
+        "--up", type=_number_list(3), metavar="x,y,z", help="the world's up, where 12 o'clock "
+        "is (default: 0,0,1; +y for a pipe that starts within 30 degrees of it)",
+    )  # fmt: skip
 
 
 def _add_config_options(parser: argparse.ArgumentParser) -> None:
@@ -352,7 +426,7 @@ def _run_reconstruct(args: argparse.Namespace) -> int:
     from .pipeline import reconstruct
 
     _check_outputs(
-        [args.output, args.report, args.preview],
+        [args.output, args.report, args.preview, *_inspection_files(args.inspect)],
         [*args.input, args.poses],
         force=args.force,
         mesh=args.output,
@@ -383,7 +457,10 @@ def _run_reconstruct(args: argparse.Namespace) -> int:
         optimize=args.optimize,
         progress=not args.quiet,
     )
-    return _finish(
+    inspection = None
+    if args.inspect is not None:
+        inspection = _inspect(args, result.mesh, cloud.points)
+    code = _finish(
         result,
         args,
         points=cloud.points,
@@ -394,7 +471,11 @@ def _run_reconstruct(args: argparse.Namespace) -> int:
         reading=reading,
         registration=registration,
         title=", ".join(path.name for path in args.input),
+        inspection=inspection,
     )
+    if inspection is not None:
+        _write_inspection(args, args.inspect, result.mesh, cloud.points, *inspection)
+    return code
 
 
 def _run_tiled(args: argparse.Namespace, config) -> int:
@@ -405,8 +486,10 @@ def _run_tiled(args: argparse.Namespace, config) -> int:
     from .errors import InputError
     from .tiles import parse_tiles, reconstruct_tiled
 
-    if len(args.input) > 1 or args.poses or args.register or args.optimize:
-        raise InputError("--tiles takes one input, without --poses, --register or --optimize")
+    if len(args.input) > 1 or args.poses or args.register or args.optimize or args.inspect:
+        raise InputError(
+            "--tiles takes one input, without --poses, --register, --optimize or --inspect"
+        )
     if args.report is not None and args.report.suffix.lower() in HTML_SUFFIXES:
         raise InputError(
             f"{args.report}: with --tiles the points and planes stay on the workers; "
@@ -594,6 +677,117 @@ def _run_render(args: argparse.Namespace) -> int:
     return 0
 
 
+#: The files an inspection writes to its folder.
+INSPECTION_FILES = (
+    "defects.csv",
+    "ovality.csv",
+    "inspection.json",
+    "deviation-map.png",
+    "ovality.png",
+    "deviation.png",
+    "report.html",
+)
+
+
+def _inspection_files(folder: Path | None) -> list[Path]:
+    """The files an inspection writes to `folder`, to check before any work: none without
+    a folder, or when the folder is still to be made (in a folder that exists)."""
+    from .errors import InputError
+
+    if folder is None:
+        return []
+    if folder.exists() and not folder.is_dir():
+        raise InputError(f"{folder}: is a file; the inspection writes a folder")
+    if not folder.exists():
+        if not folder.absolute().parent.is_dir():
+            raise InputError(f"{folder}: cannot be made; folder {folder.parent} does not exist")
+        return []
+    return [folder / name for name in INSPECTION_FILES]
+
+
+def _inspect(args: argparse.Namespace, mesh, points) -> tuple:
+    """Inspect `mesh` as a pipe with the command's inspection options; return the
+    Inspection and its pictures ({caption: PNG bytes})."""
+    from .errors import InputError
+    from .inspect import UP, deviation_map, inspect_pipe, mesh_picture, ovality_plot
+    from .viz import RenderError
+
+    try:
+        inspection = inspect_pipe(
+            mesh,
+            points,
+            nominal_diameter=args.nominal_diameter,
+            threshold=None if args.threshold is None else args.threshold / 1000.0,
+            up=UP if args.up is None else args.up,
+        )
+    except InputError as error:
+        source = getattr(args, "mesh", None) or ", ".join(map(str, args.input))
+        raise InputError(f"{source}: not inspected as a pipe: {error}") from error
+    pictures = {
+        "deviation-map.png": deviation_map(inspection),
+        "ovality.png": ovality_plot(inspection),
+    }
+    try:
+        pictures["deviation.png"] = mesh_picture(mesh, inspection)
+    except RenderError as error:
+        print(f"zeroset: no picture of the mesh: {error}", file=sys.stderr)
+    return inspection, pictures
+
+
+def _write_inspection(args, folder: Path, mesh, points, inspection, pictures) -> None:
+    """Write an inspection's tables, numbers, pictures and HTML report to `folder`."""
+    from . import io
+    from .htmlreport import write_inspection_report
+    from .inspect import (
+        inspection_lines,
+        inspection_summary,
+        write_defects_csv,
+        write_ovality_csv,
+    )
+
+    folder.mkdir(exist_ok=True)
+    write_defects_csv(folder / "defects.csv", inspection)
+    write_ovality_csv(folder / "ovality.csv", inspection)
+    io.write_json(folder / "inspection.json", inspection_summary(inspection))
+    for name, picture in pictures.items():
+        with io.atomic_target(io.check_output(folder / name)) as temporary:
+            temporary.write_bytes(picture)
+    write_inspection_report(
+        folder / "report.html",
+        mesh,
+        inspection,
+        points=points,
+        pictures=_captioned(pictures),
+        source=str(getattr(args, "mesh", None) or ", ".join(map(str, args.input))),
+    )
+    if not args.quiet:
+        print("\n".join(inspection_lines(inspection)))
+        print(f"inspection  written to {folder}/: " + ", ".join(
+            name for name in INSPECTION_FILES if name in pictures or not name.endswith(".png")
+        ))  # fmt: skip
+
+
+def _captioned(pictures: dict) -> dict:
+    """The pictures keyed by their captions in the HTML report."""
+    captions = {
+        "deviation-map.png": "the unrolled wall, coloured by deviation",
+        "ovality.png": "ovality along the pipe",
+        "deviation.png": "the mesh, coloured by deviation",
+    }
+    return {captions[name]: picture for name, picture in pictures.items()}
+
+
+def _run_inspect(args: argparse.Namespace) -> int:
+    from . import io
+
+    _check_outputs(_inspection_files(args.output), [args.mesh, args.points], force=args.force)
+    mesh = io.read_mesh(args.mesh)
+    points = io.read_points(args.points).points if args.points else None
+    inspection = _inspect(args, mesh, points)
+    _write_inspection(args, args.output, mesh, points, *inspection)
+    return 0
+
+
 def _run_demo(args: argparse.Namespace) -> int:
     from . import io
     from .pipeline import reconstruct
@@ -627,14 +821,56 @@ def _run_demo(args: argparse.Namespace) -> int:
 
 def _run_synth(args: argparse.Namespace) -> int:
     from . import synthetic
+    from .errors import InputError
 
-    truth = args.output.with_name(f"{args.output.stem}-truth.ply")
-    _check_outputs([args.output, truth], [], force=args.force)
+    def parse_numbers(option: str, text: str, form: str, counts=None) -> list[float]:
+        """The comma-separated numbers given to `option`: one of `counts` of them, or any."""
+        try:
+            values = [float(part) for part in text.split(",")]
+        except ValueError:
+            values = []
+        if not values or (counts is not None and len(values) not in counts):
+            raise InputError(f"{option} must be {form}; got {text!r}")
+        return values
+
+    damaged = args.kind.startswith("damaged-")
+    scan = args.kind in ("pipe-scan", "damaged-pipe-scan")
+    if not damaged and (args.dent or args.bulge or args.ovality is not None):
+        raise InputError("--dent, --bulge and --ovality go with the damaged-* kinds")
+    if args.stations is not None and args.kind != "damaged-pipe-scan":
+        raise InputError("--stations goes with damaged-pipe-scan")
+    with_length = ("cylinder", "tee", "pipe-scan", "damaged-pipe", "damaged-pipe-scan")
+    if args.length is not None and args.kind not in with_length:
+        raise InputError(f"--length does not apply to {args.kind}")
     generator = getattr(synthetic, SYNTH_KINDS[args.kind])
     options = {"rng": args.seed, "outliers": args.outliers}
     if args.radius is not None:
         options["radius"] = args.radius
-    if args.kind == "pipe-scan":
+    if args.length is not None:
+        options["length"] = args.length
+    if damaged:
+        defects = []
+        for kind in ("dent", "bulge"):
+            for text in getattr(args, kind):
+                form = "AXIAL,CLOCK,DEPTH,WIDTH (metres, degrees, metres, metres)"
+                axial, clock, depth, width = parse_numbers(f"--{kind}", text, form, (4,))
+                try:
+                    defects.append(synthetic.Defect(kind, axial, clock, depth, width))
+                except InputError as error:
+                    raise InputError(f"--{kind} {text}: {error}") from None
+        options["defects"] = defects
+        if args.ovality is not None:
+            ovality = parse_numbers("--ovality", args.ovality, "VALUE or VALUE,CLOCK", (1, 2))
+            options["ovality"] = ovality[0]
+            options["ovality_clock"] = ovality[1] if len(ovality) == 2 else 0.0
+        if args.stations is not None:
+            options["stations"] = parse_numbers("--stations", args.stations, "Z0,Z1,...")
+        if args.kind == "damaged-elbow":
+            options["shape"] = "elbow"
+    truth = args.output.with_name(f"{args.output.stem}-truth.ply")
+    record = args.output.with_name(f"{args.output.stem}-truth.json") if damaged else None
+    _check_outputs([args.output, truth, record], [], force=args.force)
+    if scan:
         options.update(rotation_step=args.rotation_step, noise_scale=args.noise_scale)
         sample = generator(**options)
     else:
@@ -645,7 +881,8 @@ def _run_synth(args: argparse.Namespace) -> int:
     if not args.quiet:
         print(
             f"wrote {sample.points.shape[0]:,} points to {points_path}"
-            + (f" and the true surface to {truth_path}" if truth_path else "")
+            + (f", the true surface to {truth_path}" if truth_path else "")
+            + (f" and the truth record (defects, ovality) to {record}" if record else "")
         )
     return 0
 
@@ -686,8 +923,11 @@ def _finish(
     reading=None,
     registration=None,
     title=None,
+    inspection=None,
 ) -> int:
-    """Write the mesh, reports (JSON or HTML, by suffix) and preview; print the summary."""
+    """Write the mesh, reports (JSON or HTML, by suffix) and preview; print the summary.
+
+    `inspection` is an (Inspection, pictures) pair from `_inspect`, shown in HTML reports."""
     import resource
 
     from . import io
@@ -701,7 +941,16 @@ def _finish(
     report["peak_mib"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     for path in report_paths:
         if path.suffix.lower() in HTML_SUFFIXES:
-            write_html_report(path, result, points=points, source=source, report=report)
+            write_html_report(
+                path,
+                result,
+                points=points,
+                source=source,
+                report=report,
+                **({} if inspection is None else dict(
+                    inspection=inspection[0], pictures=_captioned(inspection[1])
+                )),
+            )  # fmt: skip
         else:
             io.write_json(path, report)
     if preview_path is not None:

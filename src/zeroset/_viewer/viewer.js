@@ -1,6 +1,7 @@
 // The viewer of a zeroset HTML report: reads the JSON and the packed arrays embedded in the
 // page, draws them with three.js (the global THREE, embedded before this script) and writes the
-// numbers beside them. Nothing is fetched from the network.
+// numbers beside them: a reconstruction's, a pipe inspection's, or both. Nothing is fetched
+// from the network.
 "use strict";
 
 (async () => {
@@ -9,8 +10,14 @@
   const packed = JSON.parse(document.getElementById("zeroset-layers").textContent);
   const TYPES = { float32: Float32Array, uint32: Uint32Array };
   // Five stops of viridis: dark where the data lie on the mesh, yellow where they are far.
-  const RAMP = [[0.267, 0.005, 0.329], [0.231, 0.322, 0.545], [0.128, 0.567, 0.551],
+  const VIRIDIS = [[0.267, 0.005, 0.329], [0.231, 0.322, 0.545], [0.128, 0.567, 0.551],
     [0.369, 0.789, 0.383], [0.993, 0.906, 0.144]];
+  // Seven stops of matplotlib's RdBu_r, as in zeroset.inspect's pictures: blue inward, white
+  // on the nominal wall, red outward.
+  const DIVERGING = [[0.020, 0.188, 0.380], [0.216, 0.514, 0.733], [0.655, 0.814, 0.894],
+    [0.969, 0.966, 0.965], [0.969, 0.718, 0.600], [0.789, 0.277, 0.255], [0.404, 0.0, 0.122]];
+  const GREY = [0.6, 0.6, 0.6]; // where a value is unknown (NaN)
+  const FRONT = 0x5a8cd9, BACK = 0xd98c5a;
 
   async function unpack(entry) {
     const text = atob(entry.gzip);
@@ -20,12 +27,21 @@
     return new TYPES[entry.dtype](await new Response(stream).arrayBuffer());
   }
 
-  function ramp(t) {
-    const x = Math.min(Math.max(t, 0), 1) * (RAMP.length - 1);
-    const i = Math.min(Math.floor(x), RAMP.length - 2);
+  function ramp(stops, t) {
+    const x = Math.min(Math.max(t, 0), 1) * (stops.length - 1);
+    const i = Math.min(Math.floor(x), stops.length - 2);
     const f = x - i;
-    return RAMP[i].map((a, k) => a + f * (RAMP[i + 1][k] - a));
+    return stops[i].map((a, k) => a + f * (stops[i + 1][k] - a));
   }
+
+  // Per-vertex colours of `values`, `colour(value)` where finite and grey elsewhere.
+  function paint(values, colour) {
+    const colours = new Float32Array(3 * values.length);
+    values.forEach((v, i) => colours.set(Number.isFinite(v) ? colour(v) : GREY, 3 * i));
+    return new THREE.BufferAttribute(colours, 3);
+  }
+
+  const mm = (metres, digits = 1) => (1000 * metres).toFixed(digits);
 
   function percentile(values, q) {
     const known = Array.from(values).filter(Number.isFinite).sort((a, b) => a - b);
@@ -47,7 +63,8 @@
   camera.add(headlight);
 
   const objects = {};
-  let limit = null;
+  const legends = {}; // the HTML legend of each colouring some mesh has, by its switch
+  let limit = null; // of the distances: the first mesh's 95th percentile, for every mesh
   const meshNames = Object.keys(packed).filter((name) => packed[name].faces);
 
   for (const name of meshNames) {
@@ -58,17 +75,24 @@
     geometry.setIndex(new THREE.BufferAttribute(await unpack(layer.faces), 1));
     geometry.computeVertexNormals();
     const group = new THREE.Group();
-    const front = new THREE.MeshPhongMaterial({ color: 0x5a8cd9, side: THREE.FrontSide, flatShading: true });
-    const back = new THREE.MeshPhongMaterial({ color: 0xd98c5a, side: THREE.BackSide, flatShading: true });
+    const front = new THREE.MeshPhongMaterial({ color: FRONT, side: THREE.FrontSide, flatShading: true });
+    const back = new THREE.MeshPhongMaterial({ color: BACK, side: THREE.BackSide, flatShading: true });
     group.add(new THREE.Mesh(geometry, front), new THREE.Mesh(geometry, back));
+    const colours = {};
     if (layer.distance) {
       const distance = await unpack(layer.distance);
       limit = limit ?? percentile(distance, 0.95);
-      const colours = new Float32Array(vertices.length);
-      distance.forEach((d, i) => {
-        colours.set(Number.isFinite(d) ? ramp(d / limit) : [0.6, 0.6, 0.6], 3 * i);
-      });
-      geometry.setAttribute("color", new THREE.BufferAttribute(colours, 3));
+      colours["colour by distance"] = paint(distance, (d) => ramp(VIRIDIS, d / limit));
+    }
+    if (layer.deviation) {
+      // Signed metres from the nominal pipe, symmetric about 0 up to the 99th percentile.
+      const deviation = await unpack(layer.deviation);
+      const reach = Math.max(percentile(deviation.map(Math.abs), 0.99), 1e-9);
+      colours["colour by deviation"] = paint(
+        deviation, (d) => ramp(DIVERGING, 0.5 + 0.5 * d / reach));
+      const shown = Number((1000 * reach).toPrecision(2));
+      legends["colour by deviation"] = `<div>deviation: blue &minus;${shown} mm (inward)`
+        + ` &hellip; red +${shown} mm (outward)</div><div class="bar diverging"></div>`;
     }
     const boundary = await unpack(layer.boundary);
     const ends = new Float32Array(boundary.length * 3);
@@ -78,13 +102,20 @@
     const edges = new THREE.LineSegments(lines, new THREE.LineBasicMaterial({ color: 0xd01010 }));
     edges.userData.boundary = true;
     group.add(edges);
-    group.userData = { front, back, faces: layer.faces.shape[0], edges: boundary.length / 2 };
+    group.userData = {
+      geometry, front, back, colours, faces: layer.faces.shape[0], edges: boundary.length / 2,
+    };
     objects[name + " mesh"] = group;
   }
 
   const first = objects[meshNames[0] + " mesh"].children[0].geometry;
   first.computeBoundingSphere();
   const { center, radius } = first.boundingSphere;
+
+  if (limit !== null) {
+    legends["colour by distance"] = `<div>distance from the data to the mesh</div>`
+      + `<div class="bar"></div><div>0 &ndash; ${limit.toPrecision(3)} (95 %) and more</div>`;
+  }
 
   if (packed.points) {
     const geometry = new THREE.BufferGeometry();
@@ -93,19 +124,21 @@
     objects.points = new THREE.Points(geometry, material);
   }
 
-  const origins = await unpack(packed.normals.origins);
-  const directions = await unpack(packed.normals.directions);
-  const tips = new Float32Array(origins.length * 2);
-  for (let i = 0; i < origins.length; i += 3) {
-    for (let k = 0; k < 3; k++) {
-      tips[2 * i + k] = origins[i + k];
-      tips[2 * i + 3 + k] = origins[i + k] + 0.03 * radius * directions[i + k];
+  if (packed.normals) {
+    const origins = await unpack(packed.normals.origins);
+    const directions = await unpack(packed.normals.directions);
+    const tips = new Float32Array(origins.length * 2);
+    for (let i = 0; i < origins.length; i += 3) {
+      for (let k = 0; k < 3; k++) {
+        tips[2 * i + k] = origins[i + k];
+        tips[2 * i + 3 + k] = origins[i + k] + 0.03 * radius * directions[i + k];
+      }
     }
+    const normalLines = new THREE.BufferGeometry();
+    normalLines.setAttribute("position", new THREE.BufferAttribute(tips, 3));
+    objects.normals = new THREE.LineSegments(
+      normalLines, new THREE.LineBasicMaterial({ color: 0x1a9933 }));
   }
-  const normalLines = new THREE.BufferGeometry();
-  normalLines.setAttribute("position", new THREE.BufferAttribute(tips, 3));
-  objects.normals = new THREE.LineSegments(
-    normalLines, new THREE.LineBasicMaterial({ color: 0x1a9933 }));
 
   for (const object of Object.values(objects)) scene.add(object);
 
@@ -129,6 +162,25 @@
   new ResizeObserver(draw).observe(canvas);
 
   // ---------------------------------------------------------------- layer switches
+  // Colour every mesh by the colouring switched `on` (a key of `legends`), or plainly for null
+  // and where a mesh lacks it.
+  let painted = null;
+  function colour(on) {
+    painted = on;
+    for (const mesh of meshNames) {
+      const { geometry, front, back, colours } = objects[mesh + " mesh"].userData;
+      const attribute = colours[on];
+      if (attribute) geometry.setAttribute("color", attribute);
+      for (const material of [front, back]) {
+        material.vertexColors = Boolean(attribute);
+        material.color.set(attribute ? 0xffffff : material === front ? FRONT : BACK);
+        material.needsUpdate = true;
+      }
+    }
+    legend.innerHTML = legends[on] ?? "";
+    legend.hidden = !legends[on];
+  }
+
   const state = {};
   function setLayer(name, on) {
     state[name] = on;
@@ -136,16 +188,9 @@
       for (const mesh of meshNames) {
         objects[mesh + " mesh"].children.forEach((c) => { if (c.userData.boundary) c.visible = on; });
       }
-    } else if (name === "colour by distance") {
-      for (const mesh of meshNames) {
-        const { front, back } = objects[mesh + " mesh"].userData;
-        for (const material of [front, back]) {
-          material.vertexColors = on;
-          material.color.set(on ? 0xffffff : material === front ? 0x5a8cd9 : 0xd98c5a);
-          material.needsUpdate = true;
-        }
-      }
-      legend.hidden = !on;
+    } else if (name in legends) { // one colouring at a time
+      if (on && painted !== null && painted !== name) setLayer(painted, false);
+      if (on || painted === name) colour(on ? name : null);
     } else {
       objects[name].visible = on;
     }
@@ -156,16 +201,13 @@
 
   const legend = document.getElementById("legend");
   legend.hidden = true;
-  if (limit !== null) {
-    legend.innerHTML = `<div>distance from the data to the mesh</div><div class="bar"></div>`
-      + `<div>0 &ndash; ${limit.toPrecision(3)} (95 %) and more</div>`;
-  }
   const form = document.getElementById("layers");
   const last = meshNames[meshNames.length - 1] + " mesh";
   const switches = [
     ...Object.keys(objects).map((name) => [name, name === last]),
     ["boundaries", true],
-    ...(limit !== null ? [["colour by distance", false]] : []),
+    ...["colour by distance", "colour by deviation"].filter((name) => name in legends)
+      .map((name) => [name, name === "colour by deviation"]),
   ];
   for (const [name, on] of switches) {
     const label = document.createElement("label");
@@ -183,10 +225,18 @@
   const fmt = (v) => (typeof v === "number" ? (Number.isInteger(v) ? v.toLocaleString("en")
     : v.toPrecision(4)) : v === null || v === undefined ? "" : String(v));
 
-  function section(title, rows, note) {
+  function section(title, rows, note, head) {
     const h = document.createElement("h2");
     h.textContent = title;
     const table = document.createElement("table");
+    if (head) {
+      const tr = table.createTHead().insertRow();
+      for (const name of head) {
+        const th = document.createElement("th");
+        th.textContent = name;
+        tr.append(th);
+      }
+    }
     for (const row of rows) {
       const tr = table.insertRow();
       row.forEach((cell, i) => {
@@ -209,43 +259,72 @@
     return ul;
   }
 
-  const s = report.stats;
-  section("Mesh", [
-    ["vertices", s.vertices], ["triangles", s.faces], ["boundary loops", s.boundary_loops],
-    ["components", s.mesh_components], ["Euler characteristic", s.euler_characteristic],
-    ["contouring", report.config.contour],
-  ]);
-  section("Points", [
-    ["read", s.input_points], ["outliers dropped", s.outliers],
-    ["fitted by tangent planes", s.phase1_points],
-    ...(s.phase2_points !== undefined ? [["used by phase 2", s.phase2_points]] : []),
-    ["orientation components", s.orientation_components],
-    ["grid vertices evaluated", s.grid_vertices], ["of them undefined", s.undefined_grid_vertices],
-  ]);
-  const p = report.parameters;
-  section("Parameters", [
-    ["rho + delta", p.rho_delta], ["cube size", p.cube_size], ["spacing", p.spacing],
-    ["noise", p.noise], ["averaging cell", p.averaging_cell],
-  ], list(p.notes));
-  if (report.fit) {
-    const f = report.fit;
-    section("Distance from the points to the mesh", [
-      ["mean", f.distance.mean], ["median", f.distance.median], ["95 %", f.distance.p95],
-      ["max", f.distance.max], [`within ${fmt(f.tau)}`, `${(100 * f.coverage).toFixed(1)} %`],
+  if (report.inspection) {
+    const n = report.inspection;
+    const clock = (item) => `${item.clock.toFixed(0)}\u00b0\u00a0(${item.clock_time})`;
+    section("Inspection", [
+      ["nominal diameter", `${mm(n.nominal_diameter)} mm`],
+      ["measured diameter", `${mm(n.measured_diameter)} mm`],
+      ["length", `${n.length.toFixed(3)} m`],
+      ["defect threshold", `${mm(n.threshold, 2)} mm`],
+      ["max ovality",
+        n.max_ovality === null ? "not measured" : `${(100 * n.max_ovality).toFixed(2)} %`],
+      ["defects", n.defects.length], ["branches", n.branches.length],
     ]);
+    if (n.defects.length) {
+      section("Defects", n.defects.map((d) => [
+        d.number, d.kind, d.axial.toFixed(3), clock(d),
+        `${mm(d.depth)} \u00b1 ${d.uncertainty === null ? "?" : mm(d.uncertainty)}`,
+        `${d.axial_start.toFixed(3)}\u2013${d.axial_end.toFixed(3)}`, mm(d.width, 0),
+        (1e4 * d.area).toFixed(1),
+      ]), null, ["#", "kind", "axial m", "clock", "depth mm", "axial extent m", "width mm",
+        "area cm\u00b2"]);
+    }
+    if (n.branches.length) {
+      section("Branches", n.branches.map((b, i) => [
+        i + 1, b.axial.toFixed(3), clock(b), (1e4 * b.area).toFixed(1),
+      ]), null, ["#", "axial m", "clock", "opening cm\u00b2"]);
+    }
   }
-  section("Seconds", [
-    ...Object.entries(report.timings), ["total", report.total_seconds],
-  ]);
-  if (report.optimization) {
-    const o = report.optimization;
-    section("Phase 2: energy", ["distance", "representation", "spring", "total"].map(
-      (k) => [k, o.energy_before[k], o.energy[k]]));
-    section("Phase 2: moves (accepted of tried)", Object.entries(o.moves).map(
-      ([kind, c]) => [kind, c.accepted, Object.values(c).reduce((a, b) => a + b, 0)]));
-    const h = document.createElement("h2");
-    h.textContent = "Phase 2: energy at each step";
-    numbers.append(h, chart(o.history.map((e) => e.total)));
+  if (report.stats) {
+    const s = report.stats;
+    section("Mesh", [
+      ["vertices", s.vertices], ["triangles", s.faces], ["boundary loops", s.boundary_loops],
+      ["components", s.mesh_components], ["Euler characteristic", s.euler_characteristic],
+      ["contouring", report.config.contour],
+    ]);
+    section("Points", [
+      ["read", s.input_points], ["outliers dropped", s.outliers],
+      ["fitted by tangent planes", s.phase1_points],
+      ...(s.phase2_points !== undefined ? [["used by phase 2", s.phase2_points]] : []),
+      ["orientation components", s.orientation_components],
+      ["grid vertices evaluated", s.grid_vertices], ["of them undefined", s.undefined_grid_vertices],
+    ]);
+    const p = report.parameters;
+    section("Parameters", [
+      ["rho + delta", p.rho_delta], ["cube size", p.cube_size], ["spacing", p.spacing],
+      ["noise", p.noise], ["averaging cell", p.averaging_cell],
+    ], list(p.notes));
+    if (report.fit) {
+      const f = report.fit;
+      section("Distance from the points to the mesh", [
+        ["mean", f.distance.mean], ["median", f.distance.median], ["95 %", f.distance.p95],
+        ["max", f.distance.max], [`within ${fmt(f.tau)}`, `${(100 * f.coverage).toFixed(1)} %`],
+      ]);
+    }
+    section("Seconds", [
+      ...Object.entries(report.timings), ["total", report.total_seconds],
+    ]);
+    if (report.optimization) {
+      const o = report.optimization;
+      section("Phase 2: energy", ["distance", "representation", "spring", "total"].map(
+        (k) => [k, o.energy_before[k], o.energy[k]]));
+      section("Phase 2: moves (accepted of tried)", Object.entries(o.moves).map(
+        ([kind, c]) => [kind, c.accepted, Object.values(c).reduce((a, b) => a + b, 0)]));
+      const h = document.createElement("h2");
+      h.textContent = "Phase 2: energy at each step";
+      numbers.append(h, chart(o.history.map((e) => e.total)));
+    }
   }
 
   function chart(values) {

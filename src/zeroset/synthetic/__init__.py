@@ -1,20 +1,25 @@
 """Seeded synthetic point clouds with ground truth, for tests, benchmarks and demos.
 
 Every generator takes ``rng`` (a numpy Generator, an integer seed or None) and returns a
-`Sample`: the points, the true surface normals, the exact distance to the true surface, its
-area, a dense truth mesh built from the analytic parametrisation (``truth_mesh(spacing)``,
-built lazily; ``truth`` is the default one) and, for simulated scans, each point's sensor
-position (``viewpoints``).
+`Sample`: the points, the true surface normals, the distance to the true surface (exact, or
+as close as the generator's Notes say), its area, a dense truth mesh built from the analytic
+parametrisation (``truth_mesh(spacing)``, built lazily; ``truth`` is the default one) and,
+for simulated scans, each point's sensor position (``viewpoints``).
 
 - Surface samples, uniform in area: `sample_cylinder`, `sample_sphere`, `sample_torus`,
   `two_spheres`, `sample_elbow` (a 90 degree pipe bend), `sample_tee` (a T-junction).
 - A simulated in-pipe scan: `scan_pipe` (a rotating Hokuyo URG-04LX-like 2D scanner,
   strongly non-uniform density, range-dependent noise); `scan_pipe_size` gives its size.
-- `add_noise`, `add_outliers`, and `write_sample` (points and truth mesh as PLY).
+- Damaged pipes: `damaged_pipe` (a straight pipe or an elbow with `Defect` dents and bulges
+  and ovality) and `scan_damaged_pipe` (the in-pipe scan of a damaged straight pipe from
+  several stations); their ``truth_record`` lists the defects.
+- `add_noise`, `add_outliers`, and `write_sample` (points and truth mesh as PLY, the truth
+  record as JSON).
 
 Units are metres. The same seed gives identical arrays.
 """
 
+from ._damage import CLOCK_CONVENTION, DEFECT_KINDS, Defect, damaged_pipe, scan_damaged_pipe
 from ._pipes import sample_elbow, sample_tee
 from ._sample import Sample, add_noise, add_outliers, write_sample
 from ._scanner import hokuyo_accuracy, scan_pipe, scan_pipe_size
@@ -22,16 +27,21 @@ from ._shapes import sample_cylinder, sample_sphere, sample_torus, two_spheres
 from ._truth import MAX_FACES
 
 __all__ = [
+    "CLOCK_CONVENTION",
+    "DEFECT_KINDS",
+    "Defect",
     "MAX_FACES",
     "Sample",
     "add_noise",
     "add_outliers",
+    "damaged_pipe",
     "hokuyo_accuracy",
     "sample_cylinder",
     "sample_elbow",
     "sample_sphere",
     "sample_tee",
     "sample_torus",
+    "scan_damaged_pipe",
     "scan_pipe",
     "scan_pipe_size",
     "two_spheres",

@@ -41,6 +41,39 @@ def _elbow_axis(radius_b: float, leg: float):
     return axis
 
 
+def _elbow_sites(
+    n: int, radius: float, bend_radius: float, leg: float, rng: np.random.Generator
+) -> tuple[np.ndarray, np.ndarray]:
+    """Draw `n` wall sites uniform in area on an elbow: arc lengths s (n,) along its axis
+    and angles phi (n,) about it, phi measured from the in-plane normal towards +y."""
+    bend = 0.5 * np.pi * bend_radius
+    total = 2.0 * leg + bend
+    ratio = radius / bend_radius
+    s = np.zeros(0)
+    phi = np.zeros(0)
+    while s.size < n:
+        batch = int(1.1 * (1.0 + ratio) * (n - s.size)) + 64
+        ss = rng.uniform(0.0, total, batch)
+        pp = rng.uniform(0.0, 2.0 * np.pi, batch)
+        in_bend = (ss >= leg) & (ss < leg + bend)
+        weight = np.where(in_bend, 1.0 - ratio * np.cos(pp), 1.0) / (1.0 + ratio)
+        accept = rng.uniform(0.0, 1.0, batch) < weight
+        s, phi = np.concatenate([s, ss[accept]]), np.concatenate([phi, pp[accept]])
+    return s[:n], phi[:n]
+
+
+def _elbow_frame(axis, bend_radius: float, leg: float, s: np.ndarray):
+    """Return the axis points (M, 3) and in-plane normals (M, 3) at arc lengths `s` (M,)
+    along the whole elbow axis, from the per-part `axis` of `_elbow_axis`."""
+    bend = 0.5 * np.pi * bend_radius
+    centre, e_n = np.zeros((s.size, 3)), np.zeros((s.size, 3))
+    part = np.searchsorted([leg, leg + bend], s, side="right")
+    for index, start in enumerate((0.0, leg, leg + bend)):
+        chosen = part == index
+        centre[chosen], e_n[chosen] = axis(index, s[chosen] - start)
+    return centre, e_n
+
+
 def sample_elbow(
     n: int,
     *,
@@ -101,26 +134,10 @@ def sample_elbow(
             f"bend_radius must exceed radius; got bend_radius={bend_radius!r}, radius={radius!r}"
         )
     rng = require_rng(rng)
-    bend = 0.5 * np.pi * bend_radius
-    total = 2.0 * leg + bend
-    ratio = radius / bend_radius
-    s = np.zeros(0)
-    phi = np.zeros(0)
-    while s.size < n:
-        batch = int(1.1 * (1.0 + ratio) * (n - s.size)) + 64
-        ss = rng.uniform(0.0, total, batch)
-        pp = rng.uniform(0.0, 2.0 * np.pi, batch)
-        in_bend = (ss >= leg) & (ss < leg + bend)
-        weight = np.where(in_bend, 1.0 - ratio * np.cos(pp), 1.0) / (1.0 + ratio)
-        accept = rng.uniform(0.0, 1.0, batch) < weight
-        s, phi = np.concatenate([s, ss[accept]]), np.concatenate([phi, pp[accept]])
-    s, phi = s[:n], phi[:n]
+    s, phi = _elbow_sites(n, radius, bend_radius, leg, rng)
     axis = _elbow_axis(bend_radius, leg)
-    centre, e_n = np.zeros((n, 3)), np.zeros((n, 3))
-    part = np.searchsorted([leg, leg + bend], s, side="right")
-    for index, start in enumerate((0.0, leg, leg + bend)):
-        chosen = part == index
-        centre[chosen], e_n[chosen] = axis(index, s[chosen] - start)
+    centre, e_n = _elbow_frame(axis, bend_radius, leg, s)
+    total = 2.0 * leg + 0.5 * np.pi * bend_radius
     normals = np.cos(phi)[:, None] * e_n + np.sin(phi)[:, None] * np.array([0.0, 1.0, 0.0])
     bend_centre = np.array([bend_radius, 0.0, leg])
 

@@ -47,6 +47,10 @@ class Sample:
         Sensor position of every point for simulated scans; None for surface samples.
     is_outlier : (N,) bool or None
         Which points are outliers (see `add_outliers`); None only for hand-made samples.
+    truth_record : dict or None
+        A JSON-able description of the truth beyond the mesh, for generators whose truth
+        has named parts (the defects of `damaged_pipe` and `scan_damaged_pipe`); None
+        otherwise. `write_sample` writes it beside the points as ``<stem>-truth.json``.
     """
 
     points: np.ndarray
@@ -56,6 +60,7 @@ class Sample:
     truth_mesh: Callable[..., Mesh] | None = None
     viewpoints: np.ndarray | None = None
     is_outlier: np.ndarray | None = None
+    truth_record: dict | None = None
 
     def __post_init__(self) -> None:
         for name in ("points", "normals", "viewpoints", "is_outlier"):
@@ -173,6 +178,7 @@ def finish(
     outliers: float,
     rng: np.random.Generator,
     viewpoints: np.ndarray | None = None,
+    truth_record: dict | None = None,
 ) -> Sample:
     """Add outliers (drawn last from `rng`, nothing drawn when 0) and assemble the Sample.
 
@@ -194,6 +200,7 @@ def finish(
         truth_mesh=lazy_mesh(build),
         viewpoints=viewpoints,
         is_outlier=is_outlier,
+        truth_record=truth_record,
     )
 
 
@@ -203,8 +210,10 @@ def write_sample(
     """Write a sample's points as PLY and its truth mesh beside them as ``<stem>-truth.ply``.
 
     The points file holds ``x, y, z``, ``nx, ny, nz`` and, for scans, ``vp_x, vp_y, vp_z``
-    as doubles, which `zeroset.io.read_points` reads back. Each file is replaced atomically
-    (through `zeroset.io`), so a failed write leaves an existing file untouched.
+    as doubles, which `zeroset.io.read_points` reads back. A sample with a ``truth_record``
+    (the damaged pipes: radius, ovality, each defect with its centre) also gets it as
+    indented JSON in ``<stem>-truth.json``. Each file is replaced atomically (through
+    `zeroset.io`), so a failed write leaves an existing file untouched.
 
     Parameters
     ----------
@@ -218,7 +227,8 @@ def write_sample(
     -------
     points_path : pathlib.Path
     truth_path : pathlib.Path or None
-        ``<stem>-truth.ply`` beside `path`; None when the sample has no truth mesh.
+        ``<stem>-truth.ply`` beside `path`; None when the sample has no truth mesh. The
+        truth record, when there is one, goes to ``<stem>-truth.json`` beside it.
 
     Raises
     ------
@@ -229,7 +239,7 @@ def write_sample(
 
     See Also
     --------
-    zeroset.io.write_points, zeroset.io.write_mesh
+    zeroset.io.write_points, zeroset.io.write_mesh, zeroset.io.write_json
     """
     from .. import io
 
@@ -241,6 +251,8 @@ def write_sample(
     points_path = io.write_points(
         target, sample.points, normals=sample.normals, viewpoints=sample.viewpoints
     )
+    if sample.truth_record is not None:
+        io.write_json(target.with_name(f"{target.stem}-truth.json"), sample.truth_record)
     if sample.truth_mesh is None:
         return points_path, None
     truth_path = io.write_mesh(

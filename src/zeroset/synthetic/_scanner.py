@@ -81,8 +81,7 @@ def _beams(g: _Geometry) -> tuple[np.ndarray, np.ndarray]:
     -radius (cos < 0), and returns if that point is within the pipe's length and the range
     t within the limits. Every scan line has the same profile.
     """
-    half = math.floor(0.5 * g.field_of_view / g.angular_step + 1e-9)
-    beta = np.radians(g.angular_step * np.arange(-half, half + 1))
+    beta = _beam_angles(g)
     cos_b, sin_b = np.cos(beta), np.sin(beta)
     side = np.where(cos_b >= 0.0, 1.0, -1.0)
     with np.errstate(divide="ignore"):
@@ -93,8 +92,46 @@ def _beams(g: _Geometry) -> tuple[np.ndarray, np.ndarray]:
     return beta[hit], t[hit]
 
 
+def _beam_angles(g: _Geometry) -> np.ndarray:
+    """Return the angles (K,) in radians of every beam of a scan line, returning or not."""
+    half = math.floor(0.5 * g.field_of_view / g.angular_step + 1e-9)
+    return np.radians(g.angular_step * np.arange(-half, half + 1))
+
+
 def _rotations(rotation_step: float) -> int:
+    """Return the number of scan lines in a full turn."""
     return max(1, math.floor(360.0 / rotation_step + 1e-9))
+
+
+def _line_angles(g: _Geometry) -> np.ndarray:
+    """Return the rotation psi (P,) in radians of every scan line."""
+    return np.radians(g.rotation_step * np.arange(_rotations(g.rotation_step)))
+
+
+def _noise_scale(value) -> float:
+    """Return the range-noise scale: a finite number >= 0."""
+    if not (isinstance(value, numbers.Real) and 0.0 <= value < math.inf):
+        raise InputError(f"noise_scale must be a number >= 0; got {value!r}")
+    return float(value)
+
+
+def _measure(true_range: np.ndarray, noise_scale: float, rng: np.random.Generator) -> np.ndarray:
+    """Return measured ranges: `true_range` plus the URG-04LX range noise times `noise_scale`."""
+    if noise_scale == 0:
+        return true_range
+    sigma = 0.5 * noise_scale * hokuyo_accuracy(true_range)
+    return true_range + sigma * rng.standard_normal(true_range.shape)
+
+
+def _beam_points(psi, beta, ranges, offset: float, z0: float) -> np.ndarray:
+    """Return the points (..., 3) at `ranges` along beams (psi, beta), all broadcast together."""
+    radial = offset + ranges * np.cos(beta)  # signed coordinate along e_r(psi)
+    return np.stack([radial * np.cos(psi), radial * np.sin(psi), z0 + ranges * np.sin(beta)], -1)
+
+
+def _origins(psi: np.ndarray, offset: float, z0: float) -> np.ndarray:
+    """Return the scanner's origin (P, 3) at each rotation psi (P,)."""
+    return np.stack([offset * np.cos(psi), offset * np.sin(psi), np.full(psi.size, z0)], -1)
 
 
 def scan_pipe_size(
@@ -216,26 +253,18 @@ def scan_pipe(
         radius, length, offset, z0, rotation_step, angular_step, field_of_view, range_limits
     )
     radius, length, offset, z0 = g.radius, g.length, g.offset, g.z0
-    if not (isinstance(noise_scale, numbers.Real) and 0.0 <= noise_scale < math.inf):
-        raise InputError(f"noise_scale must be a number >= 0; got {noise_scale!r}")
+    noise_scale = _noise_scale(noise_scale)
     outliers = _fraction(outliers, "outliers")
     rng = require_rng(rng)
     beta, true_range = _beams(g)
-    psi = np.radians(g.rotation_step * np.arange(_rotations(g.rotation_step)))
+    psi = _line_angles(g)
     shape = (psi.size, beta.size)
-    measured = np.broadcast_to(true_range, shape)
-    if noise_scale > 0:
-        sigma = 0.5 * noise_scale * hokuyo_accuracy(true_range)
-        measured = measured + sigma * rng.standard_normal(shape)
-    cos_b, sin_b = np.cos(beta), np.sin(beta)
-    radial = offset + measured * cos_b  # signed coordinate along e_r(psi)
+    measured = _measure(np.broadcast_to(true_range, shape), noise_scale, rng)
+    points = _beam_points(psi[:, None], beta, measured, offset, z0).reshape(-1, 3)
     cos_p, sin_p = np.cos(psi)[:, None], np.sin(psi)[:, None]
-    xyz = np.stack([radial * cos_p, radial * sin_p, z0 + measured * sin_b], axis=-1)
-    points = xyz.reshape(-1, 3)
-    side = np.where(cos_b >= 0.0, 1.0, -1.0)
+    side = np.where(np.cos(beta) >= 0.0, 1.0, -1.0)
     normals = np.stack([side * cos_p, side * sin_p, np.zeros(shape)], axis=-1).reshape(-1, 3)
-    origins = np.stack([offset * np.cos(psi), offset * np.sin(psi), np.full(psi.size, z0)], -1)
-    viewpoints = np.repeat(origins, beta.size, axis=0)
+    viewpoints = np.repeat(_origins(psi, offset, z0), beta.size, axis=0)
 
     def distance(x: np.ndarray) -> np.ndarray:
         x = query(x)

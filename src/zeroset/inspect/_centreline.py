@@ -1,0 +1,456 @@
+"""A pipe's centreline, 12 o'clock frame and nominal radius, fitted to a mesh of its wall.
+
+Every normal of a pipe's wall points at the axis, so the vertices pushed inward along their
+normals by the radius gather on the centreline. The radius and the side the normals face
+come from the wall's mean curvature; the pushed vertices, ordered along the longest path of
+their spanning tree, give a first centreline; then the sections fitted per station move it
+onto their centres, in rounds until it settles (see docs/inspection.md).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+from scipy import interpolate, sparse
+from scipy.sparse import csgraph
+from scipy.spatial import cKDTree
+
+from .._validate import require_rng
+from ..errors import InputError
+from ..evaluate import sample_surface
+from ..topology import boundary_edges, vertex_normals
+from ..types import Mesh
+from ._frame import UP, clock_angles, transport_frames, unit
+
+__all__ = ["Pipe", "fit_pipe", "station_fits"]
+
+#: Points sampled on the mesh for its first radius.
+CURVATURE_SAMPLES = 20_000
+#: Positions used to fit the cross-sections (a seeded subset beyond).
+MAX_FIT_VERTICES = 100_000
+#: Station length, knot spacing and the centreline's sampling, as shares of the radius.
+STATION = 0.1
+KNOT = 0.25
+SAMPLING = 0.02
+#: At most this many rounds of station fits move the centreline onto the sections'
+#: centres; they stop once it moves less than `SETTLED` radii.
+ROUNDS = 8
+SETTLED = 2e-4
+#: Residuals beyond this many robust deviations get no weight in a station's fit.
+TUKEY = 4.685
+#: Sectors of angle around a station, and how many its data must cover to fit a circle.
+SECTORS = 16
+COVERED = 12
+#: Vertices whose curvature is further than this share from the pipe's do not place its
+#: first centreline (a branch of another diameter, a flange, the rim), unless fewer than
+#: `SMOOTH_ENOUGH` of them are that close (coarse triangles, whose curvature is rough).
+BRANCHED = 0.25
+SMOOTH_ENOUGH = 0.5
+
+
+@dataclass(frozen=True, eq=False)
+class Pipe:
+    """A fitted pipe: a centreline sampled densely, its 12 o'clock frame, and its radius.
+
+    Attributes
+    ----------
+    axial : (M,) float64
+        Arc length along the centreline, metres: 0 where the data start, negative over
+        the margin of one radius before.
+    centres, tangents, ups : (M, 3) float64
+        Centreline points, unit tangents, and unit 12 o'clock directions.
+    radius : float
+        Nominal radius, metres: given, or the median radius of the stations.
+    measured_radius : float
+        The median radius of the stations, metres.
+    length : float
+        Length of the centreline with data, metres (``axial[-1]`` less the margin).
+    """
+
+    axial: np.ndarray
+    centres: np.ndarray
+    tangents: np.ndarray
+    ups: np.ndarray
+    radius: float
+    measured_radius: float
+    length: float
+
+    def __post_init__(self) -> None:
+        for value in (self.axial, self.centres, self.tangents, self.ups):
+            value.flags.writeable = False
+
+    def locate(self, x) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Axial position (m), clock angle (degrees) and distance from the centreline (m).
+
+        `x` is (N, 3); each position is projected onto the nearest point of the
+        centreline. Positions beyond its ends (the stations with data and a margin of
+        one radius) get NaN.
+        """
+        x = np.asarray(x, dtype=np.float64).reshape(-1, 3)
+        _, nearest = cKDTree(self.centres).query(x)
+        along = self.axial[nearest] + np.einsum(
+            "ij,ij->i", x - self.centres[nearest], self.tangents[nearest]
+        )
+        inside = (along >= self.axial[0]) & (along <= self.axial[-1])
+        centre, tangent, up = self._at(along)
+        radial = x - centre
+        radial -= np.einsum("ij,ij->i", radial, tangent)[:, None] * tangent
+        distance = np.linalg.norm(radial, axis=1)
+        clock = clock_angles(radial, tangent, up)
+        along, clock, distance = (np.where(inside, v, np.nan) for v in (along, clock, distance))
+        return along, clock, distance
+
+    def position(self, axial, clock, distance=None) -> np.ndarray:
+        """(N, 3) points at `axial` (m) and `clock` (degrees), `distance` (default the
+        radius) from the centreline: the inverse of `locate`."""
+        axial = np.atleast_1d(np.asarray(axial, dtype=np.float64))
+        angle = np.radians(np.broadcast_to(np.asarray(clock, dtype=np.float64), axial.shape))
+        distance = self.radius if distance is None else distance
+        centre = self._at(axial)[0]
+        radial = self.directions(axial, np.degrees(angle))[1]
+        return centre + np.asarray(distance, dtype=np.float64).reshape(-1, 1) * radial
+
+    def directions(self, axial, clock) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(N, 3) unit vectors at `axial` (m) and `clock` (degrees): along the centreline,
+        away from it, and round it the way the clock runs."""
+        axial = np.atleast_1d(np.asarray(axial, dtype=np.float64))
+        angle = np.radians(np.broadcast_to(np.asarray(clock, dtype=np.float64), axial.shape))
+        _, tangent, up = self._at(axial)
+        right = np.cross(tangent, up)
+        radial = np.cos(angle)[:, None] * up + np.sin(angle)[:, None] * right
+        return tangent, radial, np.cross(tangent, radial)
+
+    def _at(self, along: np.ndarray):
+        """Centre, unit tangent and unit up at arc lengths `along`, interpolated linearly."""
+        index = np.clip(np.searchsorted(self.axial, along) - 1, 0, self.axial.size - 2)
+        w = ((along - self.axial[index]) / (self.axial[index + 1] - self.axial[index]))[:, None]
+        centre = (1 - w) * self.centres[index] + w * self.centres[index + 1]
+        tangent = unit((1 - w) * self.tangents[index] + w * self.tangents[index + 1])
+        up = (1 - w) * self.ups[index] + w * self.ups[index + 1]
+        up = unit(up - np.einsum("ij,ij->i", up, tangent)[:, None] * tangent)
+        return centre, tangent, up
+
+
+def fit_pipe(
+    mesh: Mesh, points=None, *, nominal_diameter: float | None = None, up=UP, rng=0
+) -> Pipe:
+    """Fit a pipe's centreline, frame and radius to a mesh of its wall.
+
+    Parameters
+    ----------
+    mesh : Mesh
+        The wall of one pipe run: straight, bent, or with branches (the longest run is
+        fitted; a branch is what lies far outside it).
+    points : (N, 3) array_like, optional
+        The scan points: when given, the cross-sections are fitted to them rather than to
+        the mesh's vertices (a mesh rounds the seam where a branch joins).
+    nominal_diameter : float, optional
+        The pipe's nominal inner diameter in metres; default the measured one.
+    up : (3,) array_like
+        The world's up: 12 o'clock (see `zeroset.inspect` for the clock convention).
+    rng : numpy.random.Generator or int or None
+        Chooses the positions fitted when there are more than `MAX_FIT_VERTICES`.
+
+    Returns
+    -------
+    Pipe
+        Its centreline runs from the end where the largest component of the end-to-end
+        vector is smallest (a pipe along z runs towards +z).
+
+    Raises
+    ------
+    InputError
+        If the mesh is not a tube: no consistent curvature, or too short to fit.
+    """
+    rng = require_rng(rng)
+    shift = mesh.vertices.mean(axis=0)  # curvatures far from the origin lose digits
+    mesh = Mesh(mesh.vertices - shift, mesh.faces)
+    normals = vertex_normals(mesh)
+    curvature, defined = _wall_curvature(mesh, normals)
+    radius, towards_axis = _radius_and_side(mesh, rng)
+    used = np.flatnonzero(defined)
+    for _ in range(2):  # the run's own radius, without a branch of another size
+        tube = np.flatnonzero(defined & (np.abs(curvature * radius - towards_axis) < BRANCHED))
+        if tube.size < SMOOTH_ENOUGH * used.size:
+            break  # large triangles: each vertex's curvature is too rough to sort them by
+        used, radius = tube, 1.0 / abs(float(np.median(curvature[tube])))
+    if used.size > MAX_FIT_VERTICES:
+        used = np.sort(rng.choice(used, MAX_FIT_VERTICES, replace=False))
+    path = _longest_path(mesh.vertices[used] + towards_axis * radius * normals[used], radius)
+    run = path[-1] - path[0]
+    if run[np.argmax(np.abs(run))] < 0:  # run along the largest component's positive way
+        path = path[::-1]
+    if points is None:  # the surface, evenly, whatever the size of its triangles
+        wall = sample_surface(mesh, MAX_FIT_VERTICES, rng=rng)[0]
+    else:
+        wall = np.asarray(points, dtype=np.float64) - shift
+        if wall.shape[0] > MAX_FIT_VERTICES:
+            wall = wall[np.sort(rng.choice(wall.shape[0], MAX_FIT_VERTICES, replace=False))]
+    pipe = _pipe_along(path, radius, radius, up, margin=radius)
+    for _ in range(ROUNDS):
+        moved = _refit(pipe, wall, up)
+        inner = pipe.centres[(pipe.axial > 0) & (pipe.axial < pipe.length)]
+        pipe, change = moved, np.nanmax(moved.locate(inner)[2], initial=0.0)
+        if change < SETTLED * pipe.radius:
+            break
+    radius = pipe.radius if nominal_diameter is None else 0.5 * float(nominal_diameter)
+    return replace(pipe, centres=pipe.centres + shift, radius=radius)
+
+
+def station_fits(
+    pipe: Pipe, x: np.ndarray, *, step: float | None = None, oval: bool = True
+) -> dict:
+    """Robust circle-plus-ovality fits of the points `x` (N, 3) in stations along `pipe`.
+
+    Each station of length `step` (default a tenth of the radius) fits the distance from
+    the centreline as ``a0 + a1 cos t + b1 sin t + a2 cos 2t + b2 sin 2t`` of the clock
+    angle t, by iteratively reweighted least squares (Tukey's biweight), so dents and
+    branches do not pull it. Returns arrays per station: ``axial`` (K,) centres, ``coef``
+    (K, 5), ``count`` (K,) and ``fitted`` (K,) bool, False where the points cover fewer
+    than `COVERED` of `SECTORS` sectors of angle (with points within a tenth of the
+    median distance from the centreline), are fewer than 16 or than 0.3 of the median count;
+    ``complete`` (K,) bool, fitted
+    with every sector covered. Circles whose centre is more than half the median fitted
+    radius off the centreline, or whose radius is a quarter off it, are not fitted. With
+    ``oval=False`` only the circle is fitted (K, 3).
+    """
+    step = STATION * pipe.radius if step is None else step
+    along, clock, distance = pipe.locate(x)
+    keep = np.isfinite(along)
+    along, angle, distance = along[keep], np.radians(clock[keep]), distance[keep]
+    start = pipe.axial[0]
+    n_stations = max(1, int(np.ceil((pipe.axial[-1] - start) / step)))
+    station = np.minimum(((along - start) / step).astype(np.int64), n_stations - 1)
+    terms = [
+        np.ones_like(angle),
+        np.cos(angle),
+        np.sin(angle),
+        np.cos(2 * angle),
+        np.sin(2 * angle),
+    ]
+    basis = np.stack(terms if oval else terms[:3], axis=1)
+    sector = np.minimum((angle / (2 * np.pi / SECTORS)).astype(np.int64), SECTORS - 1)
+    covered = np.zeros((n_stations, SECTORS), dtype=bool)
+    typical = np.median(distance)
+    near = np.abs(distance - typical) < 0.1 * typical  # a branch covers nothing
+    covered[station[near], sector[near]] = True
+    count = np.bincount(station, minlength=n_stations)
+    fitted = (covered.sum(axis=1) >= COVERED) & (count >= 16)
+    fitted &= count >= 0.3 * np.median(count[fitted]) if fitted.any() else fitted
+    weight = np.where(np.abs(distance - typical) < 0.3 * typical, 1.0, 0.0)
+    for _ in range(6):
+        coef = _weighted_fits(basis, distance, weight, station, n_stations, fitted)
+        residual = distance - np.einsum("ij,ij->i", basis, coef[station])
+        scale = _station_mad(np.abs(residual), station, weight > 0, n_stations)
+        u = residual / (TUKEY * np.maximum(scale[station], 1e-9))
+        weight = np.where(np.abs(u) < 1.0, (1.0 - u**2) ** 2, 0.0)
+    offset = np.hypot(coef[:, 1], coef[:, 2])
+    typical = np.median(coef[fitted, 0]) if fitted.any() else typical
+    fitted &= (offset < 0.5 * typical) & (np.abs(coef[:, 0] - typical) < 0.25 * typical)
+    return {
+        "axial": start + (np.arange(n_stations) + 0.5) * step,
+        "coef": coef,
+        "count": count,
+        "fitted": fitted,
+        "complete": fitted & covered.all(axis=1),
+    }
+
+
+def _weighted_fits(basis, values, weight, station, n_stations, fitted) -> np.ndarray:
+    """(K, P) weighted least-squares coefficients per station (zero where not fitted)."""
+    size = basis.shape[1]
+    wb = basis * weight[:, None]
+    normal = np.zeros((n_stations, size, size))
+    for i in range(size):
+        for j in range(i, size):
+            normal[:, i, j] = normal[:, j, i] = np.bincount(
+                station, wb[:, i] * basis[:, j], n_stations
+            )
+    right = np.stack([np.bincount(station, wb[:, i] * values, n_stations) for i in range(size)], 1)
+    coef = np.zeros((n_stations, size))
+    solvable = fitted & (np.linalg.cond(normal) < 1e8)
+    coef[solvable] = np.linalg.solve(normal[solvable], right[solvable][..., None])[..., 0]
+    return coef
+
+
+def _station_mad(values, station, keep, n_stations) -> np.ndarray:
+    """(K,) median of `values` per station over `keep`, times 1.4826 (a robust sigma)."""
+    order = np.argsort(station[keep], kind="stable")
+    grouped = np.split(
+        values[keep][order], np.cumsum(np.bincount(station[keep], minlength=n_stations))[:-1]
+    )
+    return 1.4826 * np.array([np.median(g) if g.size else np.inf for g in grouped])
+
+
+def _wall_curvature(mesh: Mesh, normals: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(V,) mean curvature normal along the vertex normal (1/m; -1/r on a tube whose
+    normals point away from its axis), averaged over two rings; (V,) bool: vertices away
+    from the boundary where it is defined."""
+    v, f = mesh.vertices, mesh.faces
+    laplace = np.zeros_like(v)
+    area = np.zeros(v.shape[0])
+    double_area = np.linalg.norm(np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]]), axis=1)
+    for corner in range(3):
+        i, j, k = f[:, corner], f[:, (corner + 1) % 3], f[:, (corner + 2) % 3]
+        cot = np.einsum("ij,ij->i", v[j] - v[i], v[k] - v[i]) / np.maximum(double_area, 1e-300)
+        edge = (v[k] - v[j]) * cot[:, None]  # the cotangent at i weighs the opposite edge j-k
+        np.add.at(laplace, j, edge)
+        np.add.at(laplace, k, -edge)
+        area += np.bincount(i, double_area / 6.0, v.shape[0])
+    defined = area > 0
+    defined[np.unique(boundary_edges(f))] = False
+    rows, cols = np.repeat(f, 2, axis=1).ravel(), np.roll(f, 1, axis=1).repeat(2, 1).ravel()
+    ring = sparse.coo_matrix((np.ones(rows.size), (rows, cols)), shape=(v.shape[0],) * 2).tocsr()
+    ring = ring + sparse.identity(v.shape[0], format="csr")
+    for _ in range(2):  # a vertex next to the boundary is undefined too
+        defined = np.asarray(ring @ ~defined == 0).ravel() & defined
+    curvature = np.where(
+        defined, np.einsum("ij,ij->i", laplace, normals) / (2.0 * np.maximum(area, 1e-300)), 0.0
+    )
+    for _ in range(2):
+        curvature = (ring @ curvature) / np.maximum(ring @ defined.astype(np.float64), 1.0)
+    return curvature, defined
+
+
+def _radius_and_side(mesh: Mesh, rng: np.random.Generator) -> tuple[float, float]:
+    """The wall's radius and the sign of the step along the normals towards the axis (-1
+    when they point away from it): a first guess, which the circles fitted per station
+    correct.
+
+    Over pairs of points sampled on the surface a few triangles apart, the change of the
+    face normal along the step between them, ``sum(dn . dp) / sum(|dp|^2)``, is the mean
+    curvature H (on a tube ``+-1 / 2r``); unlike a curvature per vertex it does not depend
+    on the triangles being small or even.
+    """
+    points, normals = sample_surface(mesh, CURVATURE_SAMPLES, rng=rng)
+    v, f = mesh.vertices, mesh.faces
+    reach = 3.0 * float(np.mean(np.linalg.norm(v[f[:, 1]] - v[f[:, 0]], axis=1)))
+    pairs = cKDTree(points).query_pairs(reach, output_type="ndarray")
+    if pairs.shape[0] < 32:
+        raise InputError("the mesh is too small to fit a pipe to")
+    step = points[pairs[:, 1]] - points[pairs[:, 0]]
+    turn = normals[pairs[:, 1]] - normals[pairs[:, 0]]
+    curvature = float(np.einsum("ij,ij->", turn, step) / np.einsum("ij,ij->", step, step))
+    if not np.isfinite(curvature) or curvature == 0.0:
+        raise InputError("the mesh is flat: no pipe wall to fit")
+    return 0.5 / abs(curvature), (1.0 if curvature < 0 else -1.0)
+
+
+def _longest_path(centres: np.ndarray, radius: float) -> np.ndarray:
+    """(K, 3) cell means of `centres` along the longest path of their spanning tree."""
+    cell = 0.5 * radius
+    key = np.floor(centres / cell).astype(np.int64)
+    _, label = np.unique(key, axis=0, return_inverse=True)
+    label = label.ravel()
+    count = np.bincount(label)
+    means = np.stack([np.bincount(label, centres[:, i]) for i in range(3)], 1) / count[:, None]
+    means = means[count >= max(3, 0.05 * np.median(count))]
+    if means.shape[0] < 3:
+        raise InputError("the mesh does not span a pipe: its normals do not meet on an axis")
+    pairs = cKDTree(means).query_pairs(2.0 * cell, output_type="ndarray")
+    lengths = np.linalg.norm(means[pairs[:, 0]] - means[pairs[:, 1]], axis=1)
+    graph = sparse.coo_matrix(
+        (lengths + 1e-12, (pairs[:, 0], pairs[:, 1])), shape=(len(means),) * 2
+    )
+    tree = csgraph.minimum_spanning_tree(graph)
+    first = csgraph.dijkstra(tree, directed=False, indices=0)
+    start = int(np.argmax(np.where(np.isfinite(first), first, -1)))
+    reach, before = csgraph.dijkstra(tree, directed=False, indices=start, return_predecessors=True)
+    node = int(np.argmax(np.where(np.isfinite(reach), reach, -1)))
+    path = [node]
+    while before[node] >= 0:
+        node = int(before[node])
+        path.append(node)
+    if len(path) < 3:
+        raise InputError("the mesh is too short along its axis to fit a pipe to")
+    return means[path[::-1]]
+
+
+def _pipe_along(path: np.ndarray, radius: float, measured: float, up, margin: float) -> Pipe:
+    """A Pipe through the ordered points `path` (K, 3), smoothed by a least-squares cubic
+    spline with knots `KNOT` radii apart, sampled every `SAMPLING` radii, extended by
+    `margin` at both ends."""
+    chord = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(_moving_average(path), axis=0), axis=1))]
+    keep = np.r_[True, np.diff(chord) > 1e-12]
+    path, chord = path[keep], chord[keep]
+    spline = _smooth(chord, path, KNOT * radius)
+    fine = np.linspace(
+        chord[0], chord[-1], max(8, int(np.ceil(chord[-1] / (SAMPLING * radius))) + 1)
+    )
+    centres = spline(fine)
+    arc = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(centres, axis=0), axis=1))]
+    tangents = unit(spline(fine, 1))
+    length = float(arc[-1])
+    if margin > 0:  # straight on, in the direction of the last radius
+        back = np.searchsorted(arc, [radius, length - radius])
+        tangents[: back[0]] = unit(centres[back[0]] - centres[0])
+        tangents[back[1] :] = unit(centres[-1] - centres[back[1]])
+        ahead = np.arange(1, int(np.ceil(margin / (SAMPLING * radius))) + 1) * SAMPLING * radius
+        centres = np.concatenate(
+            [
+                centres[0] - ahead[::-1, None] * tangents[0],
+                centres,
+                centres[-1] + ahead[:, None] * tangents[-1],
+            ]
+        )
+        tangents = np.concatenate(
+            [
+                np.repeat(tangents[:1], ahead.size, 0),
+                tangents,
+                np.repeat(tangents[-1:], ahead.size, 0),
+            ]
+        )
+        arc = np.concatenate([-ahead[::-1], arc, length + ahead])
+    return Pipe(arc, centres, tangents, transport_frames(tangents, up), radius, measured, length)
+
+
+def _moving_average(path: np.ndarray, window: int = 5) -> np.ndarray:
+    """(K, 3) `path` averaged twice over `window` consecutive points (ends padded)."""
+    if path.shape[0] <= window:
+        return path
+    kernel = np.ones(window) / window
+    for _ in range(2):
+        padded = np.pad(path, ((window // 2, window // 2), (0, 0)), mode="edge")
+        path = np.stack([np.convolve(padded[:, i], kernel, mode="valid") for i in range(3)], 1)
+    return path
+
+
+def _smooth(x: np.ndarray, y: np.ndarray, knot: float):
+    """A least-squares cubic spline y(x) (vector valued) with interior knots about `knot`
+    apart (fewer when there are not four points a span), at quantiles of `x` so that
+    every span holds data."""
+    n_spans = max(1, min(int(round((x[-1] - x[0]) / knot)), x.size // 4))
+    inner = np.quantile(x, np.linspace(0.0, 1.0, n_spans + 1)[1:-1])
+    inner = np.unique(inner[(inner > x[0]) & (inner < x[-1])])
+    knots = np.r_[[x[0]] * 4, inner, [x[-1]] * 4]
+    return interpolate.make_lsq_spline(x, y, knots, k=3)
+
+
+def _refit(pipe: Pipe, wall: np.ndarray, up) -> Pipe:
+    """Move the centreline onto the centres of the sections fitted to `wall` per station:
+    circle and ovality where the data go all round, a circle only where they do not (beside
+    an opening a second harmonic would trade off with the centre)."""
+    circles = station_fits(pipe, wall, oval=False)
+    sections = station_fits(pipe, wall)
+    whole = sections["complete"][:, None]
+    coef = np.where(whole, sections["coef"][:, :3], circles["coef"])
+    good = circles["fitted"] | sections["complete"]
+    if np.count_nonzero(good) < 4:
+        raise InputError("too few cross-sections of the pipe are covered by the mesh to fit it")
+    fits = {"axial": circles["axial"], "coef": coef}
+    along, coef = fits["axial"][good], fits["coef"][good]
+    centre, tangent, up_dir = pipe._at(along)
+    right = np.cross(tangent, up_dir)
+    moved = centre + coef[:, 1:2] * up_dir + coef[:, 2:3] * right
+    measured = float(np.median(coef[:, 0]))
+    reach = pipe.locate(wall)[0]
+    first, last = np.nanpercentile(reach, [0.05, 99.95])
+    moved = np.concatenate(
+        [
+            moved[:1] - (along[0] - first) * tangent[:1],
+            moved,
+            moved[-1:] + (last - along[-1]) * tangent[-1:],
+        ]
+    )
+    return _pipe_along(moved, measured, measured, up, margin=measured)

@@ -1,0 +1,310 @@
+"""Defects: connected regions of the unrolled wall that leave the pipe's section."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import ndimage, optimize
+
+from ._centreline import Pipe
+from ._measure import Ovality
+from ._unrolled import WallMap
+
+__all__ = ["Branch", "Defect", "Defects", "find_defects"]
+
+#: The default significance: a cell is judged when its residual exceeds this many
+#: standard errors; on a mesh alone, whose errors are its neighbours' errors too (a ripple
+#: beside a dent), this many robust deviations of the whole wall.
+SIGNIFICANCE = 4.5
+MESH_SIGNIFICANCE = 6.0
+#: Cells where at least this share of the samples lies outside the wall are a branch.
+BRANCH = 0.5
+#: Defects within this share of the radius of a branch's opening are part of the branch.
+BRANCH_MARGIN = 0.25
+#: Regions smaller than this many kernel areas (2 pi kernel^2) are not reported.
+MIN_KERNELS = 0.5
+#: Cells within this many kernels of a cell without data (an open end, an opening, a
+#: shadow) are not judged: the kernel there sees one side only.
+EDGE_KERNELS = 2.0
+
+
+@dataclass(frozen=True)
+class Defect:
+    """A dent (inward) or bulge (outward) of the wall.
+
+    Lengths are metres, angles degrees on the clock (0 at 12 o'clock, clockwise looking
+    along the centreline).
+
+    Attributes
+    ----------
+    kind : str
+        ``"dent"`` (inward: a dent or a deposit) or ``"bulge"`` (outward: a bulge or wall
+        loss).
+    axial, clock : float
+        Position of the deepest point.
+    depth : float
+        Signed deviation of the deepest point from the section fitted at its station (the
+        pipe's local mean radius and ovality).
+    uncertainty : float
+        One standard deviation of `depth`.
+    axial_start, axial_end : float
+        Axial extent of the region beyond the threshold.
+    clock_start, clock_end : float
+        Its clock extent, clockwise from `clock_start` to `clock_end`.
+    width : float
+        Its circumferential extent, as arc length on the nominal wall.
+    area : float
+        Its area on the nominal wall, square metres.
+    """
+
+    kind: str
+    axial: float
+    clock: float
+    depth: float
+    uncertainty: float
+    axial_start: float
+    axial_end: float
+    clock_start: float
+    clock_end: float
+    width: float
+    area: float
+
+
+@dataclass(frozen=True)
+class Branch:
+    """Where a branch (a tee's, a lateral's) leaves the pipe: the axial and clock position
+    (m, degrees) of the middle of its opening, and the opening's area on the nominal wall
+    (m^2, with the cells where the branch's own wall is seen)."""
+
+    axial: float
+    clock: float
+    area: float
+
+
+@dataclass(frozen=True, eq=False)
+class Defects:
+    """Defects and branches found on a pipe's wall.
+
+    Attributes
+    ----------
+    defects : tuple of Defect
+        Deepest first.
+    branches : tuple of Branch
+    threshold : float
+        The smallest depth reported, metres: given, or the median over the wall of the
+        residual a cell needs to be significant.
+    labels : (A, C) int64
+        Index into `defects` of each cell of the wall map, -1 for none.
+    """
+
+    defects: tuple[Defect, ...]
+    branches: tuple[Branch, ...]
+    threshold: float
+    labels: np.ndarray
+
+    def __post_init__(self) -> None:
+        self.labels.flags.writeable = False
+
+
+def find_defects(
+    wall: WallMap,
+    pipe: Pipe,
+    ovality: Ovality,
+    samples: np.ndarray,
+    *,
+    threshold: float | None = None,
+) -> Defects:
+    """Find the regions of the wall map whose residual is significant: dents and bulges.
+
+    A cell is judged defective when its residual (the deviation from its station's fitted
+    section) exceeds `SIGNIFICANCE` standard errors (`MESH_SIGNIFICANCE` for a mesh's
+    samples). Connected defective cells, all inward or all outward, make a region (the
+    clock wraps round); regions smaller than `MIN_KERNELS` kernel areas are noise. Cells
+    where the samples leave the wall outward (`BRANCH`) are a branch; with the cells
+    without data next to them (its opening) and `BRANCH_MARGIN` radii around, a region
+    touching them is part of it. Cells within `EDGE_KERNELS` kernels of cells without data
+    (the open ends, a branch's opening, a shadow) are not judged.
+
+    The depth and position of each defect come from a raised-cosine bump, plus a
+    constant, fitted by least squares to the residuals of the `samples` (N, 3) around it;
+    its uncertainty is that fit's standard error. Defects shallower than `threshold`
+    (metres), when given, are not reported.
+    """
+    residual = wall.residual
+    cell_axial = wall.axial_edges[1] - wall.axial_edges[0]
+    cell_arc = np.radians(wall.clock_edges[1]) * pipe.radius
+    margin = int(np.ceil(EDGE_KERNELS * wall.kernel / cell_axial))
+    middle = 0.5 * (wall.axial_edges[:-1] + wall.axial_edges[1:])
+    beyond = (middle < 0.0) | (middle > pipe.length)  # the ends' rims are where data stop
+    empty = np.pad(~np.isfinite(residual) | beyond[:, None], ((1, 1), (0, 0)), constant_values=True)
+    near_edge = ndimage.binary_dilation(
+        empty, structure=np.ones((3, 3)), iterations=margin, border_value=0
+    )[1:-1]
+    defined = np.isfinite(residual) & ~near_edge
+    significance = SIGNIFICANCE if wall.independent else MESH_SIGNIFICANCE
+    limit = significance * np.where(defined, wall.error, np.inf)
+    reported = float(np.nanmedian(limit[defined])) if defined.any() else 0.0
+    if threshold is not None:
+        reported = float(threshold)
+    leaving = wall.off_wall >= BRANCH
+    openings = _wrapped_labels(leaving | ~np.isfinite(residual))
+    branching = np.unique(openings[leaving])
+    branches = [_branch(wall, openings == label, cell_axial * cell_arc) for label in branching]
+    near_branch = ndimage.binary_dilation(
+        np.isin(openings, branching),
+        iterations=int(np.ceil(BRANCH_MARGIN * pipe.radius / cell_axial)),
+    )
+    fit = _BumpFit(pipe, ovality, samples)
+    defects, members = [], []
+    smallest = MIN_KERNELS * 2 * np.pi * wall.kernel**2
+    for sign in (-1.0, 1.0):
+        labels = _wrapped_labels(defined & (sign * np.nan_to_num(residual) > limit))
+        areas = np.bincount(labels[labels >= 0]) * cell_axial * cell_arc
+        touching = np.unique(labels[near_branch & (labels >= 0)])
+        for label in np.setdiff1d(np.flatnonzero(areas >= smallest), touching):
+            cells, area = labels == label, areas[label]
+            found = _defect(sign, wall, cells, area, pipe, fit)
+            if threshold is None or abs(found.depth) >= threshold:
+                defects.append(found)
+                members.append(cells)
+    order = np.argsort([-abs(d.depth) for d in defects], kind="stable")
+    labels = np.full(residual.shape, -1, dtype=np.int64)
+    for rank, index in enumerate(order):
+        labels[members[index]] = rank
+    return Defects(tuple(defects[i] for i in order), tuple(branches), reported, labels)
+
+
+def _wrapped_labels(mask: np.ndarray) -> np.ndarray:
+    """(A, C) labels 0, 1, ... of the 8-connected regions of `mask`, joined across the
+    clock's wrap from the last column to the first; -1 outside."""
+    labels, count = ndimage.label(mask, structure=np.ones((3, 3)))
+    parent = np.arange(count + 1)
+
+    def root(i: int) -> int:
+        while parent[i] != i:
+            i = parent[i]
+        return i
+
+    last, first = labels[:, -1], labels[:, 0]
+    for shift in (-1, 0, 1):
+        across = np.roll(first, shift)
+        if shift:
+            across[0 if shift > 0 else -1] = 0
+        for a, b in zip(
+            last[(last > 0) & (across > 0)], across[(last > 0) & (across > 0)], strict=True
+        ):
+            ra, rb = root(int(a)), root(int(b))
+            parent[max(ra, rb)] = min(ra, rb)
+    roots = np.array([root(i) for i in range(count + 1)])
+    _, dense = np.unique(roots, return_inverse=True)
+    return dense[labels] - 1
+
+
+def _clock_range(wall: WallMap, cells: np.ndarray, centre: float) -> tuple[float, float]:
+    """Clockwise clock extent (degrees) of `cells`, read round the clock angle `centre`."""
+    cols = np.flatnonzero(cells.any(axis=0))
+    middle = 0.5 * (wall.clock_edges[cols] + wall.clock_edges[cols + 1])
+    turn = (middle - centre + 180.0) % 360.0 - 180.0
+    half = 0.5 * (wall.clock_edges[1] - wall.clock_edges[0])
+    return (centre + turn.min() - half) % 360.0, (centre + turn.max() + half) % 360.0
+
+
+def _defect(sign, wall: WallMap, cells, area, pipe: Pipe, fit: _BumpFit) -> Defect:
+    """A Defect from its region's cells: a bump fitted around the region's extreme cell."""
+    rows, cols = np.nonzero(cells)
+    extreme = np.argmax(sign * wall.residual[rows, cols])
+    peak_axial = 0.5 * (wall.axial_edges[rows[extreme]] + wall.axial_edges[rows[extreme] + 1])
+    peak_clock = 0.5 * (wall.clock_edges[cols[extreme]] + wall.clock_edges[cols[extreme] + 1])
+    start, end = wall.axial_edges[rows.min()], wall.axial_edges[rows.max() + 1]
+    clock_start, clock_end = _clock_range(wall, cells, peak_clock)
+    width = np.radians((clock_end - clock_start) % 360.0) * pipe.radius
+    axial, clock, depth, uncertainty = fit.bump(
+        peak_axial,
+        peak_clock,
+        float(wall.residual[rows[extreme], cols[extreme]]),
+        extent=(end - start, width),
+        kernel=wall.kernel,
+    )
+    return Defect(
+        kind="dent" if sign < 0 else "bulge",
+        axial=axial,
+        clock=clock,
+        depth=depth,
+        uncertainty=uncertainty,
+        axial_start=float(start),
+        axial_end=float(end),
+        clock_start=float(clock_start),
+        clock_end=float(clock_end),
+        width=float(width),
+        area=float(area),
+    )
+
+
+def _branch(wall: WallMap, cells: np.ndarray, cell_area: float) -> Branch:
+    """Where a branch's cells lie: their middle in axial position and (circular) clock."""
+    rows, cols = np.nonzero(cells)
+    angle = np.radians(0.5 * (wall.clock_edges[cols] + wall.clock_edges[cols + 1]))
+    clock = np.degrees(np.arctan2(np.sin(angle).mean(), np.cos(angle).mean())) % 360.0
+    axial = 0.5 * (wall.axial_edges[rows] + wall.axial_edges[rows + 1]).mean()
+    return Branch(axial=float(axial), clock=float(clock), area=float(rows.size * cell_area))
+
+
+class _BumpFit:
+    """Residuals of samples on the unrolled wall, to fit a defect's bump to."""
+
+    def __init__(self, pipe: Pipe, ovality: Ovality, samples: np.ndarray) -> None:
+        axial, clock, distance = pipe.locate(samples)
+        keep = np.flatnonzero(np.isfinite(distance))
+        order = keep[np.argsort(axial[keep])]
+        self.axial, self.clock = axial[order], clock[order]
+        self.residual = distance[order] - ovality.section_at(self.axial, self.clock, pipe.radius)
+        self.radius = pipe.radius
+
+    def bump(self, axial, clock, peak, *, extent, kernel) -> tuple[float, float, float, float]:
+        """Axial, clock, depth and its standard error of a bump fitted to the residuals
+        within the region's extent and three kernels of it.
+
+        The bump is a raised cosine, ``c + d cos^2(pi sqrt(u) / 2)`` for u < 1 and c beyond,
+        with ``u = (a - a0)^2 / wa^2 + (b - b0)^2 / wb^2`` (a axial, b arc length): the
+        smooth, flat-bottomed, compact shape of a dent, whose bottom it meets. With beam
+        Noise that shifts points along the wall blurs the bump and makes it look shallower
+        (errors in the variables); to second order the blur raises the bottom by
+        ``d pi^2 / 4 (s_a^2 / wa^2 + s_b^2 / wb^2)``, with s_a^2 and s_b^2 the variances of
+        the shifts along and round the wall, and the depth is corrected by that. The noise
+        is taken as isotropic: both are the variance of the fit's radial misfit.
+        """
+        reach_a = 0.5 * extent[0] + 3 * kernel
+        reach_b = 0.5 * extent[1] + 3 * kernel
+        lo, hi = np.searchsorted(self.axial, [axial - reach_a, axial + reach_a])
+        a = self.axial[lo:hi] - axial
+        b = np.radians((self.clock[lo:hi] - clock + 180.0) % 360.0 - 180.0) * self.radius
+        near = np.abs(b) <= reach_b
+        a, b, values = a[near], b[near], self.residual[lo:hi][near]
+        start = np.array([0.0, peak * 2.0, 0.0, 0.0, np.log(reach_a), np.log(reach_b)])
+        if values.size <= 2 * start.size:
+            return float(axial), float(clock), float(peak), float("nan")
+
+        def model(q, a, b):
+            u = (a - q[2]) ** 2 / np.exp(2 * q[4]) + (b - q[3]) ** 2 / np.exp(2 * q[5])
+            return q[0] + q[1] * np.cos(0.5 * np.pi * np.sqrt(np.minimum(u, 1.0))) ** 2
+
+        def misfit(q):
+            return values - model(q, a, b)
+
+        found = optimize.least_squares(misfit, start, loss="soft_l1", f_scale=3 * np.std(values))
+        q = found.x
+        centred = abs(q[2]) <= reach_a and abs(q[3]) <= reach_b
+        plausible = np.sign(q[1]) == np.sign(peak) and abs(q[0] + q[1]) <= 4 * abs(peak)
+        if not (found.success and centred and plausible):
+            return float(axial), float(clock), float(peak), float("nan")
+        jacobian = found.jac
+        variance = float(found.fun @ found.fun) / max(values.size - q.size, 1)
+        covariance = variance * np.linalg.pinv(jacobian.T @ jacobian)
+        inside = (a - q[2]) ** 2 / np.exp(2 * q[4]) + (b - q[3]) ** 2 / np.exp(2 * q[5]) < 1
+        blur = float(np.var(found.fun[inside])) if np.count_nonzero(inside) > 1 else 0.0
+        widths = np.exp(-2 * q[4]) + np.exp(-2 * q[5])
+        depth = q[0] + q[1] * (1.0 + 0.25 * np.pi**2 * blur * widths)
+        error = np.sqrt(max(covariance[0, 0] + covariance[1, 1] + 2 * covariance[0, 1], 0.0))
+        turn = np.degrees(q[3] / self.radius)
+        return float(axial + q[2]), float((clock + turn) % 360.0), float(depth), float(error)

@@ -1,0 +1,128 @@
+"""One call from a pipe's mesh (and scan) to its centreline, deviations, ovality and defects."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .._validate import as_points, require_rng
+from ..evaluate import sample_surface
+from ..types import Mesh
+from ._centreline import Pipe, fit_pipe
+from ._defects import Defects, find_defects
+from ._frame import UP
+from ._measure import Ovality, deviation, ovality
+from ._unrolled import KERNEL, WallMap, unroll
+
+__all__ = ["Inspection", "inspect_pipe"]
+
+#: Most samples drawn on a mesh inspected without its points.
+MAX_SURFACE_SAMPLES = 4_000_000
+
+
+def mesh_area(mesh: Mesh) -> float:
+    """Total area of the mesh's faces."""
+    v, f = mesh.vertices, mesh.faces
+    return (
+        0.5
+        * np.linalg.norm(np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]]), axis=1).sum()
+    )
+
+
+@dataclass(frozen=True, eq=False)
+class Inspection:
+    """Everything `inspect_pipe` found.
+
+    Attributes
+    ----------
+    pipe : Pipe
+        Centreline, clock frame and nominal radius.
+    ovality : Ovality
+        Per station.
+    wall : WallMap
+        The unrolled wall's smoothed deviations, from the points when given.
+    defects : Defects
+        Defects and branches.
+    vertex_deviation : (V,) float64
+        Each mesh vertex's signed deviation from the nominal pipe, metres (NaN beyond the
+        centreline's ends).
+    point_deviation : (N,) float64 or None
+        The same for each scan point, when given.
+    timings : dict
+        Seconds per stage.
+    """
+
+    pipe: Pipe
+    ovality: Ovality
+    wall: WallMap
+    defects: Defects
+    vertex_deviation: np.ndarray
+    point_deviation: np.ndarray | None
+    timings: dict = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        self.vertex_deviation.flags.writeable = False
+        if self.point_deviation is not None:
+            self.point_deviation.flags.writeable = False
+
+
+def inspect_pipe(
+    mesh: Mesh,
+    points=None,
+    *,
+    nominal_diameter: float | None = None,
+    threshold: float | None = None,
+    up=UP,
+    rng=0,
+) -> Inspection:
+    """Inspect a pipe: fit its centreline, measure deviation and ovality, find defects.
+
+    Parameters
+    ----------
+    mesh : Mesh
+        The pipe's wall, e.g. from `zeroset.reconstruct`.
+    points : (N, 3) array_like, optional
+        The scan the mesh was made from. With it, cross-sections, the wall map and
+        defect depths come from the points, whose errors are independent, so a defect is
+        judged against each place's own noise; without it, from the mesh's vertices,
+        judged against the mesh's overall roughness.
+    nominal_diameter : float, optional
+        Metres; default the median measured diameter.
+    threshold : float, optional
+        Smallest depth reported as a defect, metres; default from the measured noise
+        (see `find_defects`).
+    up : (3,) array_like
+        The world's up, which sets 12 o'clock (see `zeroset.inspect`).
+    rng : numpy.random.Generator or int or None
+        Chooses the positions the cross-sections are fitted to when there are many, and
+        the samples drawn on the mesh without points.
+
+    Returns
+    -------
+    Inspection
+    """
+    timings: dict[str, float] = {}
+    rng = require_rng(rng)
+    start = time.perf_counter()
+    samples = None if points is None else as_points(points, "points")
+    pipe = fit_pipe(mesh, samples, nominal_diameter=nominal_diameter, up=up, rng=rng)
+    timings["centreline"] = time.perf_counter() - start
+    start = time.perf_counter()
+    wall_samples = samples
+    if samples is None:  # the surface, evenly, a few samples per cell of the wall map
+        area = float(mesh_area(mesh))
+        count = int(min(max(area / (0.5 * KERNEL * pipe.radius) ** 2, 1), MAX_SURFACE_SAMPLES))
+        wall_samples = sample_surface(mesh, count, rng=rng)[0]
+    found_ovality = ovality(pipe, wall_samples)
+    vertex_deviation = deviation(pipe, mesh.vertices)
+    point_deviation = None if samples is None else deviation(pipe, samples)
+    timings["deviation and ovality"] = time.perf_counter() - start
+    start = time.perf_counter()
+    wall = unroll(pipe, found_ovality, wall_samples, independent=samples is not None)
+    defects = find_defects(wall, pipe, found_ovality, wall_samples, threshold=threshold)
+    timings["defects"] = time.perf_counter() - start
+    return Inspection(
+        pipe, found_ovality, wall, defects, vertex_deviation, point_deviation, timings
+    )

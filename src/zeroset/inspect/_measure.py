@@ -1,0 +1,105 @@
+"""Deviation from the nominal pipe and ovality per station."""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+
+from ._centreline import Pipe, station_fits
+
+__all__ = ["Ovality", "deviation", "ovality"]
+
+#: Stations over which the sections' mean radius and ovality are running medians.
+WINDOW = 9
+
+
+def deviation(pipe: Pipe, x) -> np.ndarray:
+    """(N,) signed distance in metres of the positions `x` (N, 3) from the nominal pipe.
+
+    Negative is inward (a dent or a deposit), positive outward (a bulge or wall loss).
+    Positions beyond the centreline's ends are NaN.
+    """
+    return pipe.locate(x)[2] - pipe.radius
+
+
+@dataclass(frozen=True, eq=False)
+class Ovality:
+    """Ovality per station along a pipe.
+
+    Attributes
+    ----------
+    axial : (K,) float64
+        Station centres, metres along the centreline.
+    ovality : (K,) float64
+        ``(D_max - D_min) / D_nominal`` of the section fitted at each station; NaN where
+        the data do not go all round the pipe.
+    d_max, d_min : (K,) float64
+        The fitted section's largest and smallest diameter, metres.
+    major_clock : (K,) float64
+        Clock angle of the largest diameter, degrees in [0, 180).
+    """
+
+    axial: np.ndarray
+    ovality: np.ndarray
+    d_max: np.ndarray
+    d_min: np.ndarray
+    major_clock: np.ndarray
+
+    def __post_init__(self) -> None:
+        for value in (self.axial, self.ovality, self.d_max, self.d_min, self.major_clock):
+            value.flags.writeable = False
+
+    def section_at(self, axial, clock, otherwise: float) -> np.ndarray:
+        """(N,) radius (m) of the fitted section at `axial` (m) and `clock` (degrees): the
+        mean radius ``(D_max + D_min) / 4`` plus ``(D_max - D_min) / 4 cos(2 (clock -
+        major_clock))``, interpolated between the stations that measured one, and
+        `otherwise` where none did."""
+        axial = np.asarray(axial, dtype=np.float64)
+        fitted = np.isfinite(self.ovality)
+        if not fitted.any():
+            return np.full(axial.shape, float(otherwise))
+        half = 0.25 * (self.d_max - self.d_min)
+        angle = np.radians(2.0 * self.major_clock)
+        mean = np.interp(axial, self.axial[fitted], 0.25 * (self.d_max + self.d_min)[fitted])
+        cos = np.interp(axial, self.axial[fitted], (half * np.cos(angle))[fitted])
+        sin = np.interp(axial, self.axial[fitted], (half * np.sin(angle))[fitted])
+        twice = np.radians(2.0 * np.asarray(clock, dtype=np.float64))
+        return mean + cos * np.cos(twice) + sin * np.sin(twice)
+
+
+def ovality(pipe: Pipe, x, *, step: float | None = None) -> Ovality:
+    """Ovality of the wall positions `x` (N, 3) in stations of `step` metres along `pipe`.
+
+    Each station fits ``a0 + a1 cos t + b1 sin t + a2 cos 2t + b2 sin 2t`` to the distance
+    from the centreline over the clock angle t, robustly (a dent does not pull it; see
+    `station_fits`); a station whose data leave a sector of 22.5 degrees empty (an
+    opening, a shadow) measures none. The mean radius and the second harmonic are then
+    medians over `WINDOW` stations, so one station disturbed (a branch's seam, a defect)
+    does not set them. With ``A2 = hypot(a2, b2)`` the diameters are ``2 (a0 +- A2)``, so
+    the ovality is ``4 A2 / D_nominal``. `step` defaults to a tenth of the radius.
+    """
+    fits = station_fits(pipe, np.asarray(x, dtype=np.float64), step=step)
+    complete = fits["complete"]
+    a0, a2, b2 = (np.where(complete, fits["coef"][:, i], np.nan) for i in (0, 3, 4))
+    a0, a2, b2 = _running_median(a0), _running_median(a2), _running_median(b2)
+    amplitude = np.hypot(a2, b2)
+    return Ovality(
+        axial=fits["axial"],
+        ovality=2.0 * amplitude / pipe.radius,
+        d_max=2.0 * (a0 + amplitude),
+        d_min=2.0 * (a0 - amplitude),
+        major_clock=np.mod(0.5 * np.degrees(np.arctan2(b2, a2)), 180.0),
+    )
+
+
+def _running_median(values: np.ndarray) -> np.ndarray:
+    """(K,) median of the finite `values` over `WINDOW` stations centred on each; NaN stays."""
+    half = WINDOW // 2
+    padded = np.pad(values, half, constant_values=np.nan)
+    windows = np.lib.stride_tricks.sliding_window_view(padded, WINDOW)
+    with np.errstate(all="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        median = np.nanmedian(windows, axis=1)
+    return np.where(np.isfinite(values), median, np.nan)

@@ -1,0 +1,137 @@
+"""The unrolled wall: deviations binned by axial position and clock angle, and smoothed."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import ndimage
+
+from ._centreline import Pipe
+from ._measure import Ovality
+
+__all__ = ["WallMap", "unroll"]
+
+#: Standard deviation of the smoothing kernel, as a share of the radius.
+KERNEL = 0.04
+#: Cells per kernel standard deviation.
+CELLS_PER_KERNEL = 2.0
+#: A sample further than this share of the radius from the nominal wall is off the wall.
+OFF_WALL = 0.3
+#: A cell's spread is at least this share of the wall's robust standard deviation (a few
+#: samples can agree by chance).
+LOCAL_FLOOR = 0.5
+#: Cells whose smoothed mean rests on fewer effective samples are left undefined.
+MIN_SAMPLES = 5.0
+
+
+@dataclass(frozen=True, eq=False)
+class WallMap:
+    """Deviations on the unrolled wall, on a grid of axial position by clock angle.
+
+    Attributes
+    ----------
+    axial_edges : (A + 1,) float64
+        Cell edges along the centreline, metres.
+    clock_edges : (C + 1,) float64
+        Cell edges around it, degrees from 0 to 360.
+    deviation : (A, C) float64
+        Smoothed deviation from the nominal pipe, metres (NaN where undefined).
+    residual : (A, C) float64
+        Smoothed deviation from the fitted section (its mean radius and ovality, see
+        `Ovality.section_at`): what defects are judged on.
+    error : (A, C) float64
+        Standard error of `residual`, metres.
+    off_wall : (A, C) float64
+        Smoothed share of the samples more than `OFF_WALL` radii outside the wall.
+    kernel : float
+        Standard deviation of the smoothing kernel on the wall, metres.
+    independent : bool
+        Whether the samples' errors were independent (scan points), so that `error`
+        shrinks with their number, or not (samples of a mesh).
+    """
+
+    axial_edges: np.ndarray
+    clock_edges: np.ndarray
+    deviation: np.ndarray
+    residual: np.ndarray
+    error: np.ndarray
+    off_wall: np.ndarray
+    kernel: float
+    independent: bool
+
+    def __post_init__(self) -> None:
+        for name in ("axial_edges", "clock_edges", "deviation", "residual", "error", "off_wall"):
+            getattr(self, name).flags.writeable = False
+
+    def cells(self, axial: np.ndarray, clock: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Row and column of the cells holding `axial` (m) and `clock` (degrees); -1 rows
+        off the map."""
+        rows = np.searchsorted(self.axial_edges, axial, side="right") - 1
+        rows = np.where((rows >= 0) & (rows < self.axial_edges.size - 1), rows, -1)
+        step = self.clock_edges[1] - self.clock_edges[0]
+        cols = np.clip((np.nan_to_num(clock) / step).astype(np.int64), 0, self.clock_edges.size - 2)
+        return rows, cols
+
+
+def unroll(
+    pipe: Pipe, ovality: Ovality, samples: np.ndarray, *, independent: bool, kernel=None
+) -> WallMap:
+    """Bin `samples` (N, 3) on the unrolled wall and smooth them with a Gaussian kernel.
+
+    Each cell holds the kernel-weighted mean of the samples' deviations, and the
+    standard error of that mean. When the samples are `independent` (scan points), the
+    error is the local spread (at least `LOCAL_FLOOR` of the wall's) over the square root
+    of the effective number of samples;
+    when they are not (a mesh's vertices, smooth by construction, whose errors are
+    neighbours' errors too) it is the robust spread of all the samples' residuals.
+    `kernel` is the kernel's standard deviation in metres, default `KERNEL` radii.
+    """
+    kernel = KERNEL * pipe.radius if kernel is None else float(kernel)
+    axial, clock, distance = pipe.locate(samples)
+    deviation = distance - pipe.radius
+    keep = np.isfinite(deviation)
+    axial, clock, deviation = axial[keep], clock[keep], deviation[keep]
+    residual = distance[keep] - ovality.section_at(axial, clock, pipe.radius)
+    cell = kernel / CELLS_PER_KERNEL
+    n_clock = max(8, int(np.ceil(2 * np.pi * pipe.radius / cell)))
+    n_axial = max(1, int(np.ceil((pipe.axial[-1] - pipe.axial[0]) / cell)))
+    axial_edges = pipe.axial[0] + cell * np.arange(n_axial + 1)
+    clock_edges = np.linspace(0.0, 360.0, n_clock + 1)
+    rows = np.minimum(((axial - pipe.axial[0]) / cell).astype(np.int64), n_axial - 1)
+    cols = np.minimum((clock / 360.0 * n_clock).astype(np.int64), n_clock - 1)
+    flat = rows * n_clock + cols
+    on = np.abs(residual) < OFF_WALL * pipe.radius
+    off = residual >= OFF_WALL * pipe.radius
+
+    def grid(weights, mask) -> np.ndarray:
+        return np.bincount(flat[mask], weights[mask], n_axial * n_clock).reshape(n_axial, n_clock)
+
+    ones = np.ones_like(residual)
+    sigma = (CELLS_PER_KERNEL, CELLS_PER_KERNEL * 2 * np.pi * pipe.radius / (cell * n_clock))
+
+    def blur(values: np.ndarray, scale: float = 1.0) -> np.ndarray:
+        return ndimage.gaussian_filter(
+            values, (sigma[0] * scale, sigma[1] * scale), mode=("constant", "wrap"), truncate=3.0
+        )
+
+    count = blur(grid(ones, on))
+    total = blur(grid(ones, on | off))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean_dev = blur(grid(deviation, on)) / count
+        mean = blur(grid(residual, on)) / count
+        noise = 1.4826 * np.median(np.abs(residual[on])) if on.any() else 0.0
+        spread = blur(grid(residual**2, on)) / count - mean**2
+        spread = np.maximum(spread, (LOCAL_FLOOR * noise) ** 2)
+        squares = blur(grid(ones, on), 1.0 / np.sqrt(2.0)) / (4.0 * np.pi * sigma[0] * sigma[1])
+        effective = count**2 / squares
+        if independent:
+            error = np.sqrt(spread / effective)
+        else:
+            error = np.full_like(mean, noise)
+        share = blur(grid(ones, off)) / total
+    undefined = ~(effective >= MIN_SAMPLES)
+    for value in (mean_dev, mean, error):
+        value[undefined] = np.nan
+    share[~(total > 0)] = 0.0
+    return WallMap(axial_edges, clock_edges, mean_dev, mean, error, share, kernel, independent)
