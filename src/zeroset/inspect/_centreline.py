@@ -198,25 +198,27 @@ def fit_pipe(
     return replace(pipe, centres=pipe.centres + shift, radius=radius)
 
 
-def station_fits(
-    pipe: Pipe, x: np.ndarray, *, step: float | None = None, oval: bool = True
-) -> dict:
-    """Robust circle-plus-ovality fits of the points `x` (N, 3) in stations along `pipe`.
+def station_fits(pipe: Pipe, located, *, step: float | None = None, oval: bool = True) -> dict:
+    """Robust circle-plus-ovality fits of points in stations along `pipe`.
+
+    `located` is ``pipe.locate(x)`` of the points x: their axial position, clock angle
+    and distance from the centreline.
 
     Each station of length `step` (default a tenth of the radius) fits the distance from
     the centreline as ``a0 + a1 cos t + b1 sin t + a2 cos 2t + b2 sin 2t`` of the clock
     angle t, by iteratively reweighted least squares (Tukey's biweight), so dents and
-    branches do not pull it. Returns arrays per station: ``axial`` (K,) centres, ``coef``
-    (K, 5), ``count`` (K,) and ``fitted`` (K,) bool, False where the points cover fewer
-    than `COVERED` of `SECTORS` sectors of angle (with points within a tenth of the
-    median distance from the centreline), are fewer than 16 or than 0.3 of the median count;
-    ``complete`` (K,) bool, fitted
-    with every sector covered. Circles whose centre is more than half the median fitted
-    radius off the centreline, or whose radius is a quarter off it, are not fitted. With
-    ``oval=False`` only the circle is fitted (K, 3).
+    branches do not pull it; with ``oval=False`` only the circle (the first three terms).
+    Returns arrays per station: ``axial`` (K,) centres, ``coef`` (K, 5) or (K, 3),
+    ``count`` (K,), ``fitted`` (K,) bool and ``complete`` (K,) bool.
+
+    A station is not fitted where its points cover fewer than `COVERED` of `SECTORS`
+    sectors of angle (counting points within a tenth of the median distance from the
+    centreline), are fewer than 16 or than 0.3 of the median count, or where the circle's
+    centre is more than half the median fitted radius off the centreline or its radius a
+    quarter off that median. It is complete when fitted with every sector covered.
     """
     step = STATION * pipe.radius if step is None else step
-    along, clock, distance = pipe.locate(x)
+    along, clock, distance = located
     keep = np.isfinite(along)
     along, angle, distance = along[keep], np.radians(clock[keep]), distance[keep]
     start = pipe.axial[0]
@@ -431,21 +433,19 @@ def _refit(pipe: Pipe, wall: np.ndarray, up) -> Pipe:
     """Move the centreline onto the centres of the sections fitted to `wall` per station:
     circle and ovality where the data go all round, a circle only where they do not (beside
     an opening a second harmonic would trade off with the centre)."""
-    circles = station_fits(pipe, wall, oval=False)
-    sections = station_fits(pipe, wall)
-    whole = sections["complete"][:, None]
-    coef = np.where(whole, sections["coef"][:, :3], circles["coef"])
+    located = pipe.locate(wall)
+    circles = station_fits(pipe, located, oval=False)
+    sections = station_fits(pipe, located)
+    coef = np.where(sections["complete"][:, None], sections["coef"][:, :3], circles["coef"])
     good = circles["fitted"] | sections["complete"]
     if np.count_nonzero(good) < 4:
         raise InputError("too few cross-sections of the pipe are covered by the mesh to fit it")
-    fits = {"axial": circles["axial"], "coef": coef}
-    along, coef = fits["axial"][good], fits["coef"][good]
+    along, coef = circles["axial"][good], coef[good]
     centre, tangent, up_dir = pipe._at(along)
     right = np.cross(tangent, up_dir)
     moved = centre + coef[:, 1:2] * up_dir + coef[:, 2:3] * right
     measured = float(np.median(coef[:, 0]))
-    reach = pipe.locate(wall)[0]
-    first, last = np.nanpercentile(reach, [0.05, 99.95])
+    first, last = np.nanpercentile(located[0], [0.05, 99.95])
     moved = np.concatenate(
         [
             moved[:1] - (along[0] - first) * tangent[:1],

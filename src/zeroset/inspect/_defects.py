@@ -114,6 +114,7 @@ def find_defects(
     samples: np.ndarray,
     *,
     threshold: float | None = None,
+    located=None,
 ) -> Defects:
     """Find the regions of the wall map whose residual is significant: dents and bulges.
 
@@ -129,7 +130,8 @@ def find_defects(
     The depth and position of each defect come from a raised-cosine bump, plus a
     constant, fitted by least squares to the residuals of the `samples` (N, 3) around it;
     its uncertainty is that fit's standard error. Defects shallower than `threshold`
-    (metres), when given, are not reported.
+    (metres), when given, are not reported. `located` is ``pipe.locate(samples)`` when
+    already computed.
     """
     residual = wall.residual
     cell_axial = wall.axial_edges[1] - wall.axial_edges[0]
@@ -155,7 +157,7 @@ def find_defects(
         np.isin(openings, branching),
         iterations=int(np.ceil(BRANCH_MARGIN * pipe.radius / cell_axial)),
     )
-    fit = _BumpFit(pipe, ovality, samples)
+    fit = _BumpFit(pipe, ovality, pipe.locate(samples) if located is None else located)
     defects, members = [], []
     smallest = MIN_KERNELS * 2 * np.pi * wall.kernel**2
     for sign in (-1.0, 1.0):
@@ -251,10 +253,11 @@ def _branch(wall: WallMap, cells: np.ndarray, cell_area: float) -> Branch:
 
 
 class _BumpFit:
-    """Residuals of samples on the unrolled wall, to fit a defect's bump to."""
+    """Residuals of samples on the unrolled wall (located on the pipe: axial, clock and
+    distance), to fit a defect's bump to."""
 
-    def __init__(self, pipe: Pipe, ovality: Ovality, samples: np.ndarray) -> None:
-        axial, clock, distance = pipe.locate(samples)
+    def __init__(self, pipe: Pipe, ovality: Ovality, located) -> None:
+        axial, clock, distance = located
         keep = np.flatnonzero(np.isfinite(distance))
         order = keep[np.argsort(axial[keep])]
         self.axial, self.clock = axial[order], clock[order]

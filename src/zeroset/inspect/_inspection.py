@@ -115,13 +115,17 @@ def inspect_pipe(
         area = float(mesh_area(mesh))
         count = int(min(max(area / (0.5 * KERNEL * pipe.radius) ** 2, 1), MAX_SURFACE_SAMPLES))
         wall_samples = sample_surface(mesh, count, rng=rng)[0]
-    found_ovality = ovality(pipe, wall_samples)
+    located = pipe.locate(wall_samples)  # once, for every stage below
+    found_ovality = ovality(pipe, wall_samples, located=located)
     vertex_deviation = deviation(pipe, mesh.vertices)
-    point_deviation = None if samples is None else deviation(pipe, samples)
+    point_deviation = None if samples is None else located[2] - pipe.radius
     timings["deviation and ovality"] = time.perf_counter() - start
     start = time.perf_counter()
-    wall = unroll(pipe, found_ovality, wall_samples, independent=samples is not None)
-    defects = find_defects(wall, pipe, found_ovality, wall_samples, threshold=threshold)
+    independent = samples is not None
+    wall = unroll(pipe, found_ovality, wall_samples, independent=independent, located=located)
+    defects = find_defects(
+        wall, pipe, found_ovality, wall_samples, threshold=threshold, located=located
+    )
     timings["defects"] = time.perf_counter() - start
     return Inspection(
         pipe, found_ovality, wall, defects, vertex_deviation, point_deviation, timings

@@ -69,7 +69,7 @@ class Ovality:
         return mean + cos * np.cos(twice) + sin * np.sin(twice)
 
 
-def ovality(pipe: Pipe, x, *, step: float | None = None) -> Ovality:
+def ovality(pipe: Pipe, x, *, step: float | None = None, located=None) -> Ovality:
     """Ovality of the wall positions `x` (N, 3) in stations of `step` metres along `pipe`.
 
     Each station fits ``a0 + a1 cos t + b1 sin t + a2 cos 2t + b2 sin 2t`` to the distance
@@ -80,7 +80,9 @@ def ovality(pipe: Pipe, x, *, step: float | None = None) -> Ovality:
     does not set them. With ``A2 = hypot(a2, b2)`` the diameters are ``2 (a0 +- A2)``, so
     the ovality is ``4 A2 / D_nominal``. `step` defaults to a tenth of the radius.
     """
-    fits = station_fits(pipe, np.asarray(x, dtype=np.float64), step=step)
+    if located is None:
+        located = pipe.locate(np.asarray(x, dtype=np.float64))
+    fits = station_fits(pipe, located, step=step)
     complete = fits["complete"]
     a0, a2, b2 = (np.where(complete, fits["coef"][:, i], np.nan) for i in (0, 3, 4))
     a0, a2, b2 = _running_median(a0), _running_median(a2), _running_median(b2)

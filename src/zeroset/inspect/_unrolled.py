@@ -75,7 +75,13 @@ class WallMap:
 
 
 def unroll(
-    pipe: Pipe, ovality: Ovality, samples: np.ndarray, *, independent: bool, kernel=None
+    pipe: Pipe,
+    ovality: Ovality,
+    samples: np.ndarray,
+    *,
+    independent: bool,
+    kernel=None,
+    located=None,
 ) -> WallMap:
     """Bin `samples` (N, 3) on the unrolled wall and smooth them with a Gaussian kernel.
 
@@ -85,10 +91,11 @@ def unroll(
     of the effective number of samples;
     when they are not (a mesh's vertices, smooth by construction, whose errors are
     neighbours' errors too) it is the robust spread of all the samples' residuals.
-    `kernel` is the kernel's standard deviation in metres, default `KERNEL` radii.
+    `kernel` is the kernel's standard deviation in metres, default `KERNEL` radii;
+    `located` is ``pipe.locate(samples)`` when already computed.
     """
     kernel = KERNEL * pipe.radius if kernel is None else float(kernel)
-    axial, clock, distance = pipe.locate(samples)
+    axial, clock, distance = pipe.locate(samples) if located is None else located
     deviation = distance - pipe.radius
     keep = np.isfinite(deviation)
     axial, clock, deviation = axial[keep], clock[keep], deviation[keep]
