@@ -19,7 +19,7 @@ from scipy.spatial import cKDTree
 from .._validate import require_rng
 from ..errors import InputError
 from ..evaluate import sample_surface
-from ..topology import boundary_edges, vertex_normals
+from ..topology import boundary_edges, face_area_vectors, vertex_normals
 from ..types import Mesh
 from ._frame import UP, clock_angles, transport_frames, unit
 
@@ -292,7 +292,7 @@ def _wall_curvature(mesh: Mesh, normals: np.ndarray) -> tuple[np.ndarray, np.nda
     v, f = mesh.vertices, mesh.faces
     laplace = np.zeros_like(v)
     area = np.zeros(v.shape[0])
-    double_area = np.linalg.norm(np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]]), axis=1)
+    double_area = np.linalg.norm(face_area_vectors(v, f), axis=1)
     for corner in range(3):
         i, j, k = f[:, corner], f[:, (corner + 1) % 3], f[:, (corner + 2) % 3]
         cot = np.einsum("ij,ij->i", v[j] - v[i], v[k] - v[i]) / np.maximum(double_area, 1e-300)

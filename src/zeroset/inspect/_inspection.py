@@ -9,6 +9,7 @@ import numpy as np
 
 from .._validate import as_points, require_rng
 from ..evaluate import sample_surface
+from ..topology import face_area_vectors
 from ..types import Mesh
 from ._centreline import Pipe, fit_pipe
 from ._defects import Defects, find_defects
@@ -20,15 +21,6 @@ __all__ = ["Inspection", "inspect_pipe"]
 
 #: Most samples drawn on a mesh inspected without its points.
 MAX_SURFACE_SAMPLES = 4_000_000
-
-
-def mesh_area(mesh: Mesh) -> float:
-    """Total area of the mesh's faces."""
-    v, f = mesh.vertices, mesh.faces
-    return (
-        0.5
-        * np.linalg.norm(np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]]), axis=1).sum()
-    )
 
 
 @dataclass(frozen=True, eq=False)
@@ -112,7 +104,9 @@ def inspect_pipe(
     start = time.perf_counter()
     wall_samples = samples
     if samples is None:  # the surface, evenly, a few samples per cell of the wall map
-        area = float(mesh_area(mesh))
+        area = 0.5 * float(
+            np.linalg.norm(face_area_vectors(mesh.vertices, mesh.faces), axis=1).sum()
+        )
         count = int(min(max(area / (0.5 * KERNEL * pipe.radius) ** 2, 1), MAX_SURFACE_SAMPLES))
         wall_samples = sample_surface(mesh, count, rng=rng)[0]
     located = pipe.locate(wall_samples)  # once, for every stage below
