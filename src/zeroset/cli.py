@@ -207,7 +207,8 @@ def _parser() -> argparse.ArgumentParser:
         type=Path,
         nargs="?",
         help=points_help.replace("points", "the scan the mesh was made from (better depths "
-                                 "and noise-based thresholds)", 1),
+                                 "and noise-based thresholds; with its sensor positions, "
+                                 "depths fitted along the beams)", 1),
     )  # fmt: skip
     ins.add_argument("-o", "--output", type=Path, required=True, metavar="DIR", help="folder")
     _add_inspection_options(ins)
@@ -459,7 +460,8 @@ def _run_reconstruct(args: argparse.Namespace) -> int:
     )
     inspection = None
     if args.inspect is not None:
-        inspection = _inspect(args, result.mesh, cloud.points)
+        sensors = config.viewpoint if cloud.viewpoints is None else cloud.viewpoints
+        inspection = _inspect(args, result.mesh, cloud.points, sensors)
     code = _finish(
         result,
         args,
@@ -705,9 +707,10 @@ def _inspection_files(folder: Path | None) -> list[Path]:
     return [folder / name for name in INSPECTION_FILES]
 
 
-def _inspect(args: argparse.Namespace, mesh, points) -> tuple:
-    """Inspect `mesh` as a pipe with the command's inspection options; return the
-    Inspection and its pictures ({caption: PNG bytes})."""
+def _inspect(args: argparse.Namespace, mesh, points, viewpoints=None) -> tuple:
+    """Inspect `mesh` as a pipe with the command's inspection options, and the scan's
+    `points` and `viewpoints` when known; return the Inspection and its pictures
+    ({caption: PNG bytes})."""
     from .errors import InputError
     from .inspect import UP, deviation_map, inspect_pipe, mesh_picture, ovality_plot
     from .viz import RenderError
@@ -716,6 +719,7 @@ def _inspect(args: argparse.Namespace, mesh, points) -> tuple:
         inspection = inspect_pipe(
             mesh,
             points,
+            viewpoints=viewpoints,
             nominal_diameter=args.nominal_diameter,
             threshold=None if args.threshold is None else args.threshold / 1000.0,
             up=UP if args.up is None else args.up,
@@ -782,8 +786,9 @@ def _run_inspect(args: argparse.Namespace) -> int:
 
     _check_outputs(_inspection_files(args.output), [args.mesh, args.points], force=args.force)
     mesh = io.read_mesh(args.mesh)
-    points = io.read_points(args.points).points if args.points else None
-    inspection = _inspect(args, mesh, points)
+    cloud = io.read_points(args.points) if args.points else None
+    points = None if cloud is None else cloud.points
+    inspection = _inspect(args, mesh, points, None if cloud is None else cloud.viewpoints)
     _write_inspection(args, args.output, mesh, points, *inspection)
     return 0
 

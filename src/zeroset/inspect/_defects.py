@@ -8,6 +8,7 @@ import numpy as np
 from scipy import ndimage, optimize
 
 from ._centreline import Pipe
+from ._frame import unit
 from ._measure import Ovality
 from ._unrolled import WallMap
 
@@ -115,6 +116,7 @@ def find_defects(
     *,
     threshold: float | None = None,
     located=None,
+    viewpoints=None,
 ) -> Defects:
     """Find the regions of the wall map whose residual is significant: dents and bulges.
 
@@ -129,9 +131,11 @@ def find_defects(
 
     The depth and position of each defect come from a raised-cosine bump, plus a
     constant, fitted by least squares to the residuals of the `samples` (N, 3) around it;
-    its uncertainty is that fit's standard error. Defects shallower than `threshold`
-    (metres), when given, are not reported. `located` is ``pipe.locate(samples)`` when
-    already computed.
+    its uncertainty is that fit's standard error. With the scanner's `viewpoints` ((3,) or
+    (N, 3), a row of NaN where unknown) the bump is fitted along the beams, where the
+    range noise lies (see `_BumpFit.bump`). Defects shallower than `threshold` (metres),
+    when given, are not reported. `located` is ``pipe.locate(samples)`` when already
+    computed.
     """
     residual = wall.residual
     cell_axial = wall.axial_edges[1] - wall.axial_edges[0]
@@ -157,7 +161,12 @@ def find_defects(
         np.isin(openings, branching),
         iterations=int(np.ceil(BRANCH_MARGIN * pipe.radius / cell_axial)),
     )
-    fit = _BumpFit(pipe, ovality, pipe.locate(samples) if located is None else located)
+    located = pipe.locate(samples) if located is None else located
+    beams = None
+    if viewpoints is not None:
+        with np.errstate(invalid="ignore", divide="ignore"):
+            beams = unit(samples - np.asarray(viewpoints, dtype=np.float64))
+    fit = _BumpFit(pipe, ovality, located, beams)
     defects, members = [], []
     smallest = MIN_KERNELS * 2 * np.pi * wall.kernel**2
     for sign in (-1.0, 1.0):
@@ -254,15 +263,20 @@ def _branch(wall: WallMap, cells: np.ndarray, cell_area: float) -> Branch:
 
 class _BumpFit:
     """Residuals of samples on the unrolled wall (located on the pipe: axial, clock and
-    distance), to fit a defect's bump to."""
+    distance), to fit a defect's bump to; with the scanner's beams (N, 3 unit vectors from
+    the sensor to each sample, NaN where unknown) when known."""
 
-    def __init__(self, pipe: Pipe, ovality: Ovality, located) -> None:
+    def __init__(self, pipe: Pipe, ovality: Ovality, located, beams=None) -> None:
         axial, clock, distance = located
-        keep = np.flatnonzero(np.isfinite(distance))
+        keep = np.isfinite(distance)
+        if beams is not None:
+            keep &= np.isfinite(beams).all(axis=1)
+        keep = np.flatnonzero(keep)
         order = keep[np.argsort(axial[keep])]
         self.axial, self.clock = axial[order], clock[order]
         self.residual = distance[order] - ovality.section_at(self.axial, self.clock, pipe.radius)
-        self.radius = pipe.radius
+        self.beams = None if beams is None else beams[order]
+        self.pipe = pipe
 
     def bump(self, axial, clock, peak, *, extent, kernel) -> tuple[float, float, float, float]:
         """Axial, clock, depth and its standard error of a bump fitted to the residuals
@@ -270,44 +284,87 @@ class _BumpFit:
 
         The bump is a raised cosine, ``c + d cos^2(pi sqrt(u) / 2)`` for u < 1 and c beyond,
         with ``u = (a - a0)^2 / wa^2 + (b - b0)^2 / wb^2`` (a axial, b arc length): the
-        smooth, flat-bottomed, compact shape of a dent, whose bottom it meets. With beam
-        Noise that shifts points along the wall blurs the bump and makes it look shallower
-        (errors in the variables); to second order the blur raises the bottom by
-        ``d pi^2 / 4 (s_a^2 / wa^2 + s_b^2 / wb^2)``, with s_a^2 and s_b^2 the variances of
-        the shifts along and round the wall, and the depth is corrected by that. The noise
-        is taken as isotropic: both are the variance of the fit's radial misfit.
+        smooth, flat-bottomed, compact shape of a dent, whose bottom it meets. It is first
+        fitted to the radial residuals. A scanner's range noise lies along its beams, and
+        along an oblique beam it also shifts a point along the wall: that blurs the bump,
+        and, as a bump bunches the beams on its near flank, biases the residuals at each
+        place (errors in the variables). With the beams known, the bump is therefore
+        fitted again where the noise is, along the beams: each sample's misfit is the
+        distance along its beam to the bump (`_along_beams`), which is unbiased. Without
+        them the depth is corrected for the blur to second order, ``d pi^2 / 4 (s_a^2 /
+        wa^2 + s_b^2 / wb^2)``, taking the noise as isotropic: s_a^2 and s_b^2, the
+        variances of the shifts along and round the wall, are both the variance of the
+        fit's radial misfit.
         """
         reach_a = 0.5 * extent[0] + 3 * kernel
         reach_b = 0.5 * extent[1] + 3 * kernel
         lo, hi = np.searchsorted(self.axial, [axial - reach_a, axial + reach_a])
         a = self.axial[lo:hi] - axial
-        b = np.radians((self.clock[lo:hi] - clock + 180.0) % 360.0 - 180.0) * self.radius
+        b = np.radians((self.clock[lo:hi] - clock + 180.0) % 360.0 - 180.0) * self.pipe.radius
         near = np.abs(b) <= reach_b
         a, b, values = a[near], b[near], self.residual[lo:hi][near]
         start = np.array([0.0, peak * 2.0, 0.0, 0.0, np.log(reach_a), np.log(reach_b)])
         if values.size <= 2 * start.size:
             return float(axial), float(clock), float(peak), float("nan")
 
-        def model(q, a, b):
-            u = (a - q[2]) ** 2 / np.exp(2 * q[4]) + (b - q[3]) ** 2 / np.exp(2 * q[5])
-            return q[0] + q[1] * np.cos(0.5 * np.pi * np.sqrt(np.minimum(u, 1.0))) ** 2
-
         def misfit(q):
-            return values - model(q, a, b)
+            return values - q[0] - q[1] * _raised_cosine(q, a, b)[0]
 
-        found = optimize.least_squares(misfit, start, loss="soft_l1", f_scale=3 * np.std(values))
+        scale = 3 * np.std(values)
+        found = optimize.least_squares(misfit, start, loss="soft_l1", f_scale=scale)
+        blurred = self.beams is None
+        if found.success and not blurred:
+            along, radial, round_ = self.pipe.directions(a + axial, self.clock[lo:hi][near])
+            beams = self.beams[lo:hi][near]
+            steps = [np.einsum("ij,ij->i", beams, e) for e in (along, round_, radial)]
+            found = optimize.least_squares(
+                lambda q: _along_beams(q, a, b, values, steps),
+                found.x,
+                loss="soft_l1",
+                f_scale=scale,
+            )
         q = found.x
         centred = abs(q[2]) <= reach_a and abs(q[3]) <= reach_b
         plausible = np.sign(q[1]) == np.sign(peak) and abs(q[0] + q[1]) <= 4 * abs(peak)
         if not (found.success and centred and plausible):
             return float(axial), float(clock), float(peak), float("nan")
-        jacobian = found.jac
         variance = float(found.fun @ found.fun) / max(values.size - q.size, 1)
-        covariance = variance * np.linalg.pinv(jacobian.T @ jacobian)
-        inside = (a - q[2]) ** 2 / np.exp(2 * q[4]) + (b - q[3]) ** 2 / np.exp(2 * q[5]) < 1
-        blur = float(np.var(found.fun[inside])) if np.count_nonzero(inside) > 1 else 0.0
-        widths = np.exp(-2 * q[4]) + np.exp(-2 * q[5])
-        depth = q[0] + q[1] * (1.0 + 0.25 * np.pi**2 * blur * widths)
+        covariance = variance * np.linalg.pinv(found.jac.T @ found.jac)
+        depth = q[0] + q[1]
+        if blurred:
+            inside = _raised_cosine(q, a, b)[0] > 0
+            blur = float(np.var(found.fun[inside])) if np.count_nonzero(inside) > 1 else 0.0
+            depth += q[1] * 0.25 * np.pi**2 * blur * (np.exp(-2 * q[4]) + np.exp(-2 * q[5]))
         error = np.sqrt(max(covariance[0, 0] + covariance[1, 1] + 2 * covariance[0, 1], 0.0))
-        turn = np.degrees(q[3] / self.radius)
+        turn = np.degrees(q[3] / self.pipe.radius)
         return float(axial + q[2]), float((clock + turn) % 360.0), float(depth), float(error)
+
+
+def _raised_cosine(q, a, b) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The unit bump ``cos^2(pi sqrt(u) / 2)`` of `_BumpFit.bump` with parameters `q` at
+    (a, b), and its derivatives along a and b."""
+    wa, wb = np.exp(2 * q[4]), np.exp(2 * q[5])
+    u = (a - q[2]) ** 2 / wa + (b - q[3]) ** 2 / wb
+    root = np.sqrt(np.minimum(u, 1.0))
+    # d/du cos^2(pi sqrt(u) / 2) = -(pi^2 / 4) sinc(sqrt(u)), and 0 beyond u = 1
+    slope = np.where(u < 1.0, -0.25 * np.pi**2 * np.sinc(root), 0.0)
+    return np.cos(0.5 * np.pi * root) ** 2, 2 * slope * (a - q[2]) / wa, 2 * slope * (b - q[3]) / wb
+
+
+def _along_beams(q, a, b, values, steps, iterations: int = 4) -> np.ndarray:
+    """Signed distance (m) along each sample's beam from the sample to the wall
+    ``residual = q[0] + q[1] bump(a, b)``.
+
+    A sample at (a, b) with residual `values` moves by t along its beam to (a + t s_a,
+    b + t s_b) and residual ``values + t s_r``, `steps` = (s_a, s_b, s_r) being the beam's
+    components along, round and away from the pipe; t is found by Newton's method from 0.
+    Where a beam grazes the bump its slope is held at 0.1 at least.
+    """
+    s_a, s_b, s_r = steps
+    t = np.zeros_like(values)
+    for _ in range(iterations):
+        bump, d_a, d_b = _raised_cosine(q, a + t * s_a, b + t * s_b)
+        gap = values + t * s_r - q[0] - q[1] * bump
+        slope = s_r - q[1] * (d_a * s_a + d_b * s_b)
+        t -= gap / np.where(np.abs(slope) < 0.1, np.copysign(0.1, slope), slope)
+    return t

@@ -7,7 +7,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .._validate import as_points, require_rng
+from .._validate import as_points, as_viewpoints, require_rng
+from ..errors import InputError
 from ..evaluate import sample_surface
 from ..topology import face_area_vectors
 from ..types import Mesh
@@ -64,6 +65,7 @@ def inspect_pipe(
     mesh: Mesh,
     points=None,
     *,
+    viewpoints=None,
     nominal_diameter: float | None = None,
     threshold: float | None = None,
     up=UP,
@@ -80,6 +82,10 @@ def inspect_pipe(
         defect depths come from the points, whose errors are independent, so a defect is
         judged against each place's own noise; without it, from the mesh's vertices,
         judged against the mesh's overall roughness.
+    viewpoints : (3,) or (N, 3) array_like, optional
+        The scanner's position for all `points` or for each (a row of NaN where not
+        known). With them a defect's depth is fitted along the scanner's beams, where its
+        range noise lies, which an oblique beam's noise would otherwise make shallower.
     nominal_diameter : float, optional
         Metres; default the median measured diameter.
     threshold : float, optional
@@ -99,6 +105,10 @@ def inspect_pipe(
     rng = require_rng(rng)
     start = time.perf_counter()
     samples = None if points is None else as_points(points, "points")
+    if viewpoints is not None:
+        if samples is None:
+            raise InputError("viewpoints go with the points they were scanned from")
+        viewpoints = as_viewpoints(viewpoints, samples.shape[0])
     pipe = fit_pipe(mesh, samples, nominal_diameter=nominal_diameter, up=up, rng=rng)
     timings["centreline"] = time.perf_counter() - start
     start = time.perf_counter()
@@ -118,7 +128,13 @@ def inspect_pipe(
     independent = samples is not None
     wall = unroll(pipe, found_ovality, wall_samples, independent=independent, located=located)
     defects = find_defects(
-        wall, pipe, found_ovality, wall_samples, threshold=threshold, located=located
+        wall,
+        pipe,
+        found_ovality,
+        wall_samples,
+        threshold=threshold,
+        located=located,
+        viewpoints=viewpoints,
     )
     timings["defects"] = time.perf_counter() - start
     return Inspection(
