@@ -84,9 +84,22 @@ GENERATORS = {
         2,
         0.02,
     ),
+    "damaged elbow scan": (
+        lambda rng, noise=0.0, **kw: scan_damaged_pipe(
+            shape="elbow",
+            rotation_step=30.0,
+            stations=(0.3, 1.2),
+            noise_scale=noise / 0.005,
+            rng=rng,
+            **DAMAGE,
+            **kw,
+        ),
+        2,
+        0.02,
+    ),
 }
 NAMES = list(GENERATORS)
-SCANS = ("scan", "damaged scan")
+SCANS = ("scan", "damaged scan", "damaged elbow scan")
 
 
 def _make(name, rng=0, **keywords):
@@ -482,6 +495,166 @@ def test_scan_stations_are_concatenated_in_order():
     assert scan_damaged_pipe(**keywords).truth_record["stations"] == [1.0]
 
 
+# The elbow of `damaged_pipe` and `scan_damaged_pipe`: legs of 0.5 m, bend radius 0.6 m; a dent
+# on the outer side where the bend meets the second leg, a dent in the first leg, a bulge on the
+# inner side mid-bend, and an ovality from the first leg into the bend.
+LEG, BEND = 0.5, 0.6
+ELBOW_LENGTH = 2 * LEG + 0.5 * np.pi * BEND
+ELBOW_DAMAGE = {
+    "defects": [
+        Defect("dent", axial=LEG + 0.5 * np.pi * BEND, clock=90.0, depth=0.02, width=0.12),
+        Defect("dent", axial=0.35, clock=0.0, depth=0.015, width=0.1),
+        Defect("bulge", axial=LEG + 0.25 * np.pi * BEND, clock=270.0, depth=0.008, width=0.15),
+    ],
+    "ovality": 0.03,
+    "ovality_clock": 30.0,
+    "ovality_span": (0.2, 0.9),
+}
+
+
+def _elbow_centreline(s):
+    """Centreline points, in-plane normals and unit tangents (M, 3) of the elbow at arc
+    lengths s (M,)."""
+    a = np.clip(s - LEG, 0.0, 0.5 * np.pi * BEND) / BEND
+    beyond = np.maximum(s - LEG - 0.5 * np.pi * BEND, 0.0)
+    first = np.clip(s, 0.0, LEG)
+    zero = np.zeros_like(s)
+    centre = np.stack([BEND - BEND * np.cos(a) + beyond, zero, first + BEND * np.sin(a)], -1)
+    e_n = np.stack([np.cos(a), zero, -np.sin(a)], -1)
+    return centre, e_n, np.stack([np.sin(a), zero, np.cos(a)], -1)
+
+
+def _elbow_tube(points):
+    """Arc length s, clock (degrees) and distance rho from the centreline (M,) of points (M, 3)
+    in the elbow: the nearest of centreline samples 1 cm apart, refined by Newton's method on
+    ``(x - centre(s)) . tangent(s) = 0``."""
+    s_grid = np.linspace(0.0, ELBOW_LENGTH, 200)
+    s = s_grid[cKDTree(_elbow_centreline(s_grid)[0]).query(points)[1]]
+    for _ in range(6):
+        centre, e_n, tangent = _elbow_centreline(s)
+        v = points - centre
+        curvature = ((s > LEG) & (s < LEG + 0.5 * np.pi * BEND)) / BEND
+        along, inward = np.einsum("ij,ij->i", v, tangent), np.einsum("ij,ij->i", v, e_n)
+        step = along / (1.0 - curvature * inward)
+        s = np.clip(s + step, 0.0, ELBOW_LENGTH)
+    centre, e_n, _ = _elbow_centreline(s)
+    v = points - centre
+    clock = np.degrees(np.arctan2(v[:, 1], np.einsum("ij,ij->i", v, e_n))) - 90.0
+    return s, clock % 360.0, np.linalg.norm(v, axis=1)
+
+
+def _elbow_radius(s, clock, damage):
+    """The damaged wall's radius (M,) at arc lengths s and clocks in degrees (M,), from the
+    definitions in `Defect` and `damaged_pipe`."""
+    r = np.full(s.shape, R)
+    for defect in damage.get("defects", ()):
+        d = np.hypot(R * np.radians(_angle_between(clock, defect.clock)), s - defect.axial)
+        sign = -1.0 if defect.kind == "dent" else 1.0
+        r += sign * defect.depth * np.cos(np.pi * d / defect.width) ** 2 * (d < defect.width / 2)
+    s0, s1 = damage.get("ovality_span", (0.0, ELBOW_LENGTH))
+    beyond = np.clip(np.maximum(s0 - s, s - s1), 0.0, R)  # tapers over one radius
+    weight = np.cos(0.5 * np.pi * beyond / R) ** 2 * (beyond < R)
+    phase = 2.0 * np.radians(clock - damage.get("ovality_clock", 0.0))
+    return r + 0.5 * R * damage.get("ovality", 0.0) * np.cos(phase) * weight
+
+
+def _in_patch(s, clock, defect):
+    """Which wall points (M,), at arc lengths s and clocks (M,), the defect moves."""
+    d = np.hypot(R * np.radians(_angle_between(clock, defect.clock)), s - defect.axial)
+    return d < 0.5 * defect.width
+
+
+def test_damaged_elbow_scan_returns_the_first_wall_point_along_each_beam():
+    stations = [0.2, LEG + 0.25 * np.pi * BEND, LEG + 0.5 * np.pi * BEND, ELBOW_LENGTH]
+    scan = scan_damaged_pipe(
+        shape="elbow", stations=stations, rotation_step=30.0, noise_scale=0.0, **ELBOW_DAMAGE
+    )
+    s, clock, rho = _elbow_tube(scan.points)
+    assert np.abs(rho - _elbow_radius(s, clock, ELBOW_DAMAGE)).max() < 1e-9
+    near = np.zeros(s.size, dtype=bool)
+    for defect in ELBOW_DAMAGE["defects"]:
+        patch = _in_patch(s, clock, defect)
+        assert patch.sum() > 20, defect
+        near |= patch
+    # March a sample of the beams, a third of those that meet a defect and one in 30 of the
+    # rest, in steps of 0.5 mm up to the hit: every step is inside the wall.
+    chosen = np.union1d(np.flatnonzero(near)[::3], np.flatnonzero(~near)[::30])
+    start, end = scan.viewpoints[chosen], scan.points[chosen]
+    steps = np.ceil(np.linalg.norm(end - start, axis=1) / 5e-4).astype(np.int64)
+    beam = np.repeat(np.arange(chosen.size), steps)
+    f = (np.arange(beam.size) - np.repeat(np.cumsum(steps) - steps, steps)) / steps[beam]
+    s, clock, rho = _elbow_tube(start[beam] + f[:, None] * (end - start)[beam])
+    assert (rho - _elbow_radius(s, clock, ELBOW_DAMAGE)).max() < 0.0
+    # The scanners sit `offset` from the centreline in the cross-sections of their stations;
+    # the one at the second leg's open end sees only the pipe behind it.
+    for s0 in stations:
+        centre, _, tangent = _elbow_centreline(np.array([s0]))
+        v = scan.viewpoints - centre
+        mine = (np.abs(np.linalg.norm(v, axis=1) - 0.05) < 1e-12) & (np.abs(v @ tangent[0]) < 1e-12)
+        assert mine.sum() > 1000
+    assert ((scan.points[mine] - centre) @ tangent[0]).max() < 1e-12
+
+
+@pytest.mark.parametrize("s0", [0.2, ELBOW_LENGTH])
+def test_elbow_scan_in_a_leg_matches_the_straight_scan_there(s0):
+    # Damaged by arc length, the straight pipe of the elbow's length is the elbow up to the
+    # bend, and, turned onto the second leg, beyond it. A scanner in a leg takes the same
+    # scan lines in both, so the beams that hit that leg return the same points, and beams
+    # missing from one are missing from the other.
+    keywords = {"stations": [s0], "rotation_step": 30.0, "noise_scale": 0.0, **ELBOW_DAMAGE}
+    elbow = scan_damaged_pipe(shape="elbow", **keywords).points
+    straight = scan_damaged_pipe(length=ELBOW_LENGTH, **keywords).points
+    centre, e_n, tangent = _elbow_centreline(np.array([s0]))
+    frame = np.stack([e_n[0], [0.0, 1.0, 0.0], tangent[0]])
+    straight = centre + (straight - [0.0, 0.0, s0]) @ frame
+    lo, hi = (0.0, LEG) if s0 < LEG else (LEG + 0.5 * np.pi * BEND, ELBOW_LENGTH)
+    leg = [(s >= lo) & (s <= hi) for s in (_elbow_tube(elbow)[0], _elbow_tube(straight)[0])]
+    assert leg[0].sum() > 2000 and (~leg[0]).sum() > 1000
+    np.testing.assert_allclose(elbow[leg[0]], straight[leg[1]], atol=1e-9)
+
+
+def test_a_scan_in_the_bend_sees_both_legs_and_the_bend():
+    scan = scan_damaged_pipe(shape="elbow", rotation_step=20.0, noise_scale=0.0)
+    bend_end = LEG + 0.5 * np.pi * BEND
+    assert scan.truth_record["stations"] == [pytest.approx(LEG + 0.25 * np.pi * BEND)]
+    s, _, rho = _elbow_tube(scan.points)
+    np.testing.assert_allclose(rho, R, atol=1e-9)
+    parts = [(s < LEG).sum(), ((s > LEG) & (s < bend_end)).sum(), (s > bend_end).sum()]
+    assert min(parts) > 1000, parts
+    np.testing.assert_allclose(np.linalg.norm(scan.normals, axis=1), 1.0)
+    # Without damage the normals point away from the centreline.
+    centre, _, _ = _elbow_centreline(s)
+    np.testing.assert_allclose(scan.normals, (scan.points - centre) / R, atol=1e-9)
+
+
+def test_damaged_elbow_scan_truth_record_is_the_damaged_elbows_plus_the_scan():
+    keywords = {"shape": "elbow", "rng": 3, **ELBOW_DAMAGE}
+    scan = scan_damaged_pipe(stations=[0.2, 1.0], rotation_step=40.0, **keywords)
+    record = scan.truth_record
+    wall = damaged_pipe(10, **keywords).truth_record
+    assert record["kind"] == "damaged elbow scan" and wall["kind"] == "damaged elbow"
+    for key in ("radius", "leg", "bend_radius", "clock_convention", "ovality", "defects", "seed"):
+        assert record[key] == wall[key], key
+    scanned = {"stations": [0.2, 1.0], "offset": 0.05, "rotation_step": 40.0, "noise_scale": 1.0}
+    assert {key: record[key] for key in scanned} == scanned
+    assert set(record) == set(wall) - {"noise"} | set(scanned)
+    json.dumps(record)  # JSON-able
+    # A defect's centre lies on the undamaged elbow at its arc length and clock.
+    for defect in record["defects"]:
+        s, clock, rho = _elbow_tube(np.array([defect["centre"]]))
+        assert s[0] == pytest.approx(defect["axial"], abs=1e-9)
+        assert abs(_angle_between(clock[0], defect["clock"])) < 1e-6
+        assert rho[0] == pytest.approx(R, abs=1e-9)
+
+
+def test_damaged_elbow_scan_is_reproducible():
+    keywords = {"shape": "elbow", "rotation_step": 40.0, **ELBOW_DAMAGE}
+    one, two = (scan_damaged_pipe(rng=3, **keywords) for _ in range(2))
+    for field in ("points", "normals", "viewpoints"):
+        np.testing.assert_array_equal(getattr(one, field), getattr(two, field))
+    assert not np.array_equal(one.points, scan_damaged_pipe(rng=4, **keywords).points)
+
+
 def test_write_sample_writes_the_truth_record_as_json(tmp_path):
     sample = damaged_pipe(500, shape="elbow", noise=0.001, rng=7, **DAMAGE)
     write_sample(sample, tmp_path / "elbow.ply", spacing=0.03)
@@ -525,6 +698,35 @@ def test_cli_synth_writes_a_damaged_scan_and_its_truth_record(tmp_path, capsys):
     assert io.read_mesh(tmp_path / "scan-truth.ply").n_faces > 1000
 
 
+def test_cli_synth_writes_a_damaged_elbow_scan(tmp_path, capsys):
+    out = tmp_path / "elbow.ply"
+    argv = ["--dent", "1.2,90,0.01,0.1", "--stations", "0.25,1.2", "--rotation-step", "30"]
+    assert main(["synth", "damaged-elbow-scan", "-o", str(out), *argv, "--seed", "3"]) == 0
+    assert "elbow-truth.json" in capsys.readouterr().out
+    record = json.loads((tmp_path / "elbow-truth.json").read_text())
+    assert record["kind"] == "damaged elbow scan" and record["stations"] == [0.25, 1.2]
+    assert (record["leg"], record["bend_radius"]) == (LEG, BEND)
+    expected = scan_damaged_pipe(
+        shape="elbow",
+        defects=[Defect("dent", 1.2, 90.0, 0.01, 0.1)],
+        stations=[0.25, 1.2],
+        rotation_step=30.0,
+        rng=3,
+    )
+    cloud = io.read_points(out)
+    np.testing.assert_array_equal(cloud.points, expected.points)
+    np.testing.assert_array_equal(cloud.viewpoints, expected.viewpoints)
+    assert io.read_mesh(tmp_path / "elbow-truth.ply").n_faces > 1000
+
+
+def test_cli_synth_help_names_the_scan_kinds_and_their_stations(capsys):
+    with pytest.raises(SystemExit):
+        main(["synth", "--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    assert "damaged-elbow-scan" in text
+    assert "scanner positions in metres along the centreline (damaged-pipe-scan," in text
+
+
 @pytest.mark.parametrize(
     "kind, options, message",
     [
@@ -533,7 +735,14 @@ def test_cli_synth_writes_a_damaged_scan_and_its_truth_record(tmp_path, capsys):
         ("damaged-pipe", ["--dent", "1,400,0.01,0.2"], "--dent 1,400,0.01,0.2: defect clock"),
         ("damaged-elbow", ["--ovality", "0.1,2,3"], "--ovality must be VALUE or VALUE,CLOCK"),
         ("damaged-pipe-scan", ["--stations", "0.5,9"], r"stations must be heights in \[0, "),
-        ("damaged-pipe", ["--stations", "0.5"], "--stations goes with damaged-pipe-scan"),
+        (
+            "damaged-elbow-scan",
+            ["--stations", "0.5,2"],
+            r"stations must be arc lengths in \[0, 1.94248 ",
+        ),
+        ("damaged-pipe", ["--stations", "0.5"], "--stations goes with damaged-pipe-scan and"),
+        ("pipe-scan", ["--stations", "0.5"], "--stations goes with damaged-pipe-scan and"),
+        ("damaged-elbow-scan", ["--length", "3"], "--length does not apply to damaged-elbow-scan"),
         ("sphere", ["--dent", "1,0,0.01,0.2"], "--dent, --bulge and --ovality go with"),
         ("damaged-elbow", ["--length", "3"], "--length does not apply to damaged-elbow"),
     ],
@@ -651,6 +860,11 @@ def test_write_sample_and_write_points_refuse_other_formats(tmp_path):
             "offset must be below radius less",
         ),
         (lambda: scan_damaged_pipe(stations=[3.0]), r"stations must be heights in \[0, "),
+        (
+            lambda: scan_damaged_pipe(shape="elbow", stations=[3.0]),
+            r"stations must be arc lengths in \[0, 1.94248 \(the centreline's length\)\]",
+        ),
+        (lambda: scan_damaged_pipe(shape="bent"), "shape must be 'straight' or 'elbow'"),
     ],
 )
 def test_bad_input_is_refused_with_a_message(make, message):

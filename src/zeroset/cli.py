@@ -279,8 +279,9 @@ def _parser() -> argparse.ArgumentParser:
     )
     synth.add_argument(
         "--stations",
-        metavar="Z0,Z1,...",
-        help="scanner heights in metres (damaged-pipe-scan; default: the pipe's middle)",
+        metavar="S0,S1,...",
+        help="scanner positions in metres along the centreline (damaged-pipe-scan, "
+        "damaged-elbow-scan; default: the centreline's middle)",
     )
     synth.add_argument("--outliers", type=float, default=0.0, help="share of uniform outliers")
     synth.add_argument("--seed", type=int, default=0, help="seed")
@@ -328,6 +329,7 @@ SYNTH_KINDS = {
     "damaged-pipe": "damaged_pipe",
     "damaged-elbow": "damaged_pipe",
     "damaged-pipe-scan": "scan_damaged_pipe",
+    "damaged-elbow-scan": "scan_damaged_pipe",
 }
 
 
@@ -839,11 +841,11 @@ def _run_synth(args: argparse.Namespace) -> int:
         return values
 
     damaged = args.kind.startswith("damaged-")
-    scan = args.kind in ("pipe-scan", "damaged-pipe-scan")
+    scan = args.kind.endswith("-scan")
     if not damaged and (args.dent or args.bulge or args.ovality is not None):
         raise InputError("--dent, --bulge and --ovality go with the damaged-* kinds")
-    if args.stations is not None and args.kind != "damaged-pipe-scan":
-        raise InputError("--stations goes with damaged-pipe-scan")
+    if args.stations is not None and not (damaged and scan):
+        raise InputError("--stations goes with damaged-pipe-scan and damaged-elbow-scan")
     with_length = ("cylinder", "tee", "pipe-scan", "damaged-pipe", "damaged-pipe-scan")
     if args.length is not None and args.kind not in with_length:
         raise InputError(f"--length does not apply to {args.kind}")
@@ -869,8 +871,8 @@ def _run_synth(args: argparse.Namespace) -> int:
             options["ovality"] = ovality[0]
             options["ovality_clock"] = ovality[1] if len(ovality) == 2 else 0.0
         if args.stations is not None:
-            options["stations"] = parse_numbers("--stations", args.stations, "Z0,Z1,...")
-        if args.kind == "damaged-elbow":
+            options["stations"] = parse_numbers("--stations", args.stations, "S0,S1,...")
+        if args.kind in ("damaged-elbow", "damaged-elbow-scan"):
             options["shape"] = "elbow"
     truth = args.output.with_name(f"{args.output.stem}-truth.ply")
     record = args.output.with_name(f"{args.output.stem}-truth.json") if damaged else None

@@ -11,8 +11,8 @@ for simulated scans, each point's sensor position (``viewpoints``).
 - A simulated in-pipe scan: `scan_pipe` (a rotating Hokuyo URG-04LX-like 2D scanner,
   strongly non-uniform density, range-dependent noise); `scan_pipe_size` gives its size.
 - Damaged pipes: `damaged_pipe` (a straight pipe or an elbow with `Defect` dents and bulges
-  and ovality) and `scan_damaged_pipe` (the in-pipe scan of a damaged straight pipe from
-  several stations); their ``truth_record`` lists the defects.
+  and ovality) and `scan_damaged_pipe` (the in-pipe scan of a damaged straight pipe or
+  elbow from several stations); their ``truth_record`` lists the defects.
 - `add_noise`, `add_outliers`, and `write_sample` (points and truth mesh as PLY, the truth
   record as JSON).
 
