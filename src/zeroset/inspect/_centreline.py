@@ -132,6 +132,21 @@ class Pipe:
         return centre, tangent, up
 
 
+def beam_steps(pipe: Pipe, samples: np.ndarray, viewpoints, located) -> np.ndarray:
+    """(N, 3) components of the unit beam from each sensor in `viewpoints` ((3,) or (N, 3))
+    to each of the `samples` (N, 3): along the pipe, round it the way the clock runs and
+    away from it, at the samples' `located` axial and clock positions; NaN where the
+    sensor or the position is not known."""
+    axial, clock, _ = located
+    with np.errstate(invalid="ignore", divide="ignore"):
+        sensors = np.broadcast_to(np.asarray(viewpoints, dtype=np.float64), samples.shape)
+        beams = unit(samples - sensors)
+    along, radial, round_ = pipe.directions(np.nan_to_num(axial), np.nan_to_num(clock))
+    steps = np.stack([np.einsum("ij,ij->i", beams, e) for e in (along, round_, radial)], 1)
+    steps[~(np.isfinite(axial) & np.isfinite(clock))] = np.nan
+    return steps
+
+
 def fit_pipe(
     mesh: Mesh, points=None, *, nominal_diameter: float | None = None, up=UP, rng=0
 ) -> Pipe:
@@ -420,9 +435,9 @@ def _moving_average(path: np.ndarray, window: int = 5) -> np.ndarray:
 
 def _smooth(x: np.ndarray, y: np.ndarray, knot: float):
     """A least-squares cubic spline y(x) (vector valued) with interior knots about `knot`
-    apart (fewer when there are not four points a span), at quantiles of `x` so that
+    apart (fewer when there are not two points a span), at quantiles of `x` so that
     every span holds data."""
-    n_spans = max(1, min(int(round((x[-1] - x[0]) / knot)), x.size // 4))
+    n_spans = max(1, min(int(round((x[-1] - x[0]) / knot)), x.size // 2))
     inner = np.quantile(x, np.linspace(0.0, 1.0, n_spans + 1)[1:-1])
     inner = np.unique(inner[(inner > x[0]) & (inner < x[-1])])
     knots = np.r_[[x[0]] * 4, inner, [x[-1]] * 4]

@@ -7,8 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage, optimize
 
-from ._centreline import Pipe
-from ._frame import unit
+from ._centreline import Pipe, beam_steps
 from ._measure import Ovality
 from ._unrolled import WallMap
 
@@ -162,11 +161,8 @@ def find_defects(
         iterations=int(np.ceil(BRANCH_MARGIN * pipe.radius / cell_axial)),
     )
     located = pipe.locate(samples) if located is None else located
-    beams = None
-    if viewpoints is not None:
-        with np.errstate(invalid="ignore", divide="ignore"):
-            beams = unit(samples - np.asarray(viewpoints, dtype=np.float64))
-    fit = _BumpFit(pipe, ovality, located, beams)
+    steps = None if viewpoints is None else beam_steps(pipe, samples, viewpoints, located)
+    fit = _BumpFit(pipe, ovality, located, steps)
     defects, members = [], []
     smallest = MIN_KERNELS * 2 * np.pi * wall.kernel**2
     for sign in (-1.0, 1.0):
@@ -263,19 +259,19 @@ def _branch(wall: WallMap, cells: np.ndarray, cell_area: float) -> Branch:
 
 class _BumpFit:
     """Residuals of samples on the unrolled wall (located on the pipe: axial, clock and
-    distance), to fit a defect's bump to; with the scanner's beams (N, 3 unit vectors from
-    the sensor to each sample, NaN where unknown) when known."""
+    distance), to fit a defect's bump to; with the components of the scanner's beams
+    (`beam_steps`, NaN where unknown) when known."""
 
-    def __init__(self, pipe: Pipe, ovality: Ovality, located, beams=None) -> None:
+    def __init__(self, pipe: Pipe, ovality: Ovality, located, steps=None) -> None:
         axial, clock, distance = located
         keep = np.isfinite(distance)
-        if beams is not None:
-            keep &= np.isfinite(beams).all(axis=1)
+        if steps is not None:
+            keep &= np.isfinite(steps).all(axis=1)
         keep = np.flatnonzero(keep)
         order = keep[np.argsort(axial[keep])]
         self.axial, self.clock = axial[order], clock[order]
         self.residual = distance[order] - ovality.section_at(self.axial, self.clock, pipe.radius)
-        self.beams = None if beams is None else beams[order]
+        self.steps = None if steps is None else steps[order]
         self.pipe = pipe
 
     def bump(self, axial, clock, peak, *, extent, kernel) -> tuple[float, float, float, float]:
@@ -312,11 +308,9 @@ class _BumpFit:
 
         scale = 3 * np.std(values)
         found = optimize.least_squares(misfit, start, loss="soft_l1", f_scale=scale)
-        blurred = self.beams is None
+        blurred = self.steps is None
         if found.success and not blurred:
-            along, radial, round_ = self.pipe.directions(a + axial, self.clock[lo:hi][near])
-            beams = self.beams[lo:hi][near]
-            steps = [np.einsum("ij,ij->i", beams, e) for e in (along, round_, radial)]
+            steps = self.steps[lo:hi][near].T
             found = optimize.least_squares(
                 lambda q: _along_beams(q, a, b, values, steps),
                 found.x,

@@ -126,7 +126,14 @@ def inspect_pipe(
     timings["deviation and ovality"] = time.perf_counter() - start
     start = time.perf_counter()
     independent = samples is not None
-    wall = unroll(pipe, found_ovality, wall_samples, independent=independent, located=located)
+    wall = unroll(
+        pipe,
+        found_ovality,
+        wall_samples,
+        independent=independent,
+        located=located,
+        viewpoints=viewpoints,
+    )
     defects = find_defects(
         wall,
         pipe,

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
-from ._centreline import Pipe
+from ._centreline import Pipe, beam_steps
 from ._measure import Ovality
 
 __all__ = ["WallMap", "unroll"]
@@ -82,6 +82,7 @@ def unroll(
     independent: bool,
     kernel=None,
     located=None,
+    viewpoints=None,
 ) -> WallMap:
     """Bin `samples` (N, 3) on the unrolled wall and smooth them with a Gaussian kernel.
 
@@ -93,6 +94,13 @@ def unroll(
     neighbours' errors too) it is the robust spread of all the samples' residuals.
     `kernel` is the kernel's standard deviation in metres, default `KERNEL` radii;
     `located` is ``pipe.locate(samples)`` when already computed.
+
+    With the scanner's `viewpoints` ((3,) or (N, 3), NaN rows where unknown) each point is
+    binned where its beam meets the smoothed wall of a first map, not where the range
+    noise put it: noise along an oblique beam also moves a point along the wall, and
+    where the scan's density changes (scan lines piling onto one side of a bend) points
+    binned where they were measured bias the mean (errors in the variables). The
+    deviations binned are the measured ones.
     """
     kernel = KERNEL * pipe.radius if kernel is None else float(kernel)
     axial, clock, distance = pipe.locate(samples) if located is None else located
@@ -100,12 +108,30 @@ def unroll(
     keep = np.isfinite(deviation)
     axial, clock, deviation = axial[keep], clock[keep], deviation[keep]
     residual = distance[keep] - ovality.section_at(axial, clock, pipe.radius)
+    wall = _map(pipe, axial, clock, deviation, residual, kernel, independent)
+    if viewpoints is None:
+        return wall
+    located = (axial, clock, None)
+    s_a, s_b, s_r = beam_steps(pipe, samples[keep], viewpoints, located).T
+    rows, cols = wall.cells(axial, clock)
+    smoothed = np.where(rows >= 0, wall.residual[rows, cols], np.nan)
+    # the step along the beam to the smoothed wall, where the beam meets it squarely enough
+    step = -(residual - smoothed) / s_r
+    step = np.where(np.isfinite(step) & (np.abs(s_r) > 0.2), step, 0.0)
+    moved_axial = axial + step * s_a
+    moved_clock = (clock + np.degrees(step * s_b / pipe.radius)) % 360.0
+    return _map(pipe, moved_axial, moved_clock, deviation, residual, kernel, independent)
+
+
+def _map(pipe, axial, clock, deviation, residual, kernel, independent) -> WallMap:
+    """The WallMap of samples at `axial` (m) and `clock` (degrees) with their `deviation`
+    and `residual` (m), smoothed with a Gaussian `kernel` (m)."""
     cell = kernel / CELLS_PER_KERNEL
     n_clock = max(8, int(np.ceil(2 * np.pi * pipe.radius / cell)))
     n_axial = max(1, int(np.ceil((pipe.axial[-1] - pipe.axial[0]) / cell)))
     axial_edges = pipe.axial[0] + cell * np.arange(n_axial + 1)
     clock_edges = np.linspace(0.0, 360.0, n_clock + 1)
-    rows = np.minimum(((axial - pipe.axial[0]) / cell).astype(np.int64), n_axial - 1)
+    rows = np.clip(((axial - pipe.axial[0]) / cell).astype(np.int64), 0, n_axial - 1)
     cols = np.minimum((clock / 360.0 * n_clock).astype(np.int64), n_clock - 1)
     flat = rows * n_clock + cols
     on = np.abs(residual) < OFF_WALL * pipe.radius
