@@ -435,9 +435,9 @@ def _moving_average(path: np.ndarray, window: int = 5) -> np.ndarray:
 
 def _smooth(x: np.ndarray, y: np.ndarray, knot: float):
     """A least-squares cubic spline y(x) (vector valued) with interior knots about `knot`
-    apart (fewer when there are not two points a span), at quantiles of `x` so that
+    apart (fewer when there are not four points a span), at quantiles of `x` so that
     every span holds data."""
-    n_spans = max(1, min(int(round((x[-1] - x[0]) / knot)), x.size // 2))
+    n_spans = max(1, min(int(round((x[-1] - x[0]) / knot)), x.size // 4))
     inner = np.quantile(x, np.linspace(0.0, 1.0, n_spans + 1)[1:-1])
     inner = np.unique(inner[(inner > x[0]) & (inner < x[-1])])
     knots = np.r_[[x[0]] * 4, inner, [x[-1]] * 4]
