@@ -25,7 +25,7 @@ way of the largest component of its end-to-end vector (a pipe along z runs towar
 Lengths are metres throughout.
 """
 
-from ._centreline import Pipe, fit_pipe
+from ._centreline import Pipe, beam_steps, fit_pipe
 from ._defects import Branch, Defect, Defects, find_defects
 from ._files import inspection_lines, inspection_summary, write_defects_csv, write_ovality_csv
 from ._frame import UP
@@ -47,6 +47,7 @@ __all__ = [
     "deviation",
     "deviation_map",
     "find_defects",
+    "beam_steps",
     "fit_pipe",
     "inspect_pipe",
     "inspection_lines",

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage, optimize
 
-from ._centreline import Pipe, beam_steps
+from ._centreline import Pipe
 from ._measure import Ovality
 from ._unrolled import WallMap
 
@@ -115,7 +115,7 @@ def find_defects(
     *,
     threshold: float | None = None,
     located=None,
-    viewpoints=None,
+    beams=None,
 ) -> Defects:
     """Find the regions of the wall map whose residual is significant: dents and bulges.
 
@@ -130,8 +130,8 @@ def find_defects(
 
     The depth and position of each defect come from a raised-cosine bump, plus a
     constant, fitted by least squares to the residuals of the `samples` (N, 3) around it;
-    its uncertainty is that fit's standard error. With the scanner's `viewpoints` ((3,) or
-    (N, 3), a row of NaN where unknown) the bump is fitted along the beams, where the
+    its uncertainty is that fit's standard error. With the scanner's `beams` (`beam_steps` of
+    the samples, a row of NaN where unknown) the bump is fitted along them, where the
     range noise lies (see `_BumpFit.bump`). Defects shallower than `threshold` (metres),
     when given, are not reported. `located` is ``pipe.locate(samples)`` when already
     computed.
@@ -161,8 +161,7 @@ def find_defects(
         iterations=int(np.ceil(BRANCH_MARGIN * pipe.radius / cell_axial)),
     )
     located = pipe.locate(samples) if located is None else located
-    steps = None if viewpoints is None else beam_steps(pipe, samples, viewpoints, located)
-    fit = _BumpFit(pipe, ovality, located, steps)
+    fit = _BumpFit(pipe, ovality, located, beams)
     defects, members = [], []
     smallest = MIN_KERNELS * 2 * np.pi * wall.kernel**2
     for sign in (-1.0, 1.0):

@@ -12,7 +12,7 @@ from ..errors import InputError
 from ..evaluate import sample_surface
 from ..topology import face_area_vectors
 from ..types import Mesh
-from ._centreline import Pipe, fit_pipe
+from ._centreline import Pipe, beam_steps, fit_pipe
 from ._defects import Defects, find_defects
 from ._frame import UP
 from ._measure import Ovality, deviation, ovality
@@ -120,6 +120,7 @@ def inspect_pipe(
         count = int(min(max(area / (0.5 * KERNEL * pipe.radius) ** 2, 1), MAX_SURFACE_SAMPLES))
         wall_samples = sample_surface(mesh, count, rng=rng)[0]
     located = pipe.locate(wall_samples)  # once, for every stage below
+    beams = None if viewpoints is None else beam_steps(pipe, samples, viewpoints, located)
     found_ovality = ovality(pipe, wall_samples, located=located)
     vertex_deviation = deviation(pipe, mesh.vertices)
     point_deviation = None if samples is None else located[2] - pipe.radius
@@ -132,7 +133,7 @@ def inspect_pipe(
         wall_samples,
         independent=independent,
         located=located,
-        viewpoints=viewpoints,
+        beams=beams,
     )
     defects = find_defects(
         wall,
@@ -141,7 +142,7 @@ def inspect_pipe(
         wall_samples,
         threshold=threshold,
         located=located,
-        viewpoints=viewpoints,
+        beams=beams,
     )
     timings["defects"] = time.perf_counter() - start
     return Inspection(

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
-from ._centreline import Pipe, beam_steps
+from ._centreline import Pipe
 from ._measure import Ovality
 
 __all__ = ["WallMap", "unroll"]
@@ -82,7 +82,7 @@ def unroll(
     independent: bool,
     kernel=None,
     located=None,
-    viewpoints=None,
+    beams=None,
 ) -> WallMap:
     """Bin `samples` (N, 3) on the unrolled wall and smooth them with a Gaussian kernel.
 
@@ -95,8 +95,8 @@ def unroll(
     `kernel` is the kernel's standard deviation in metres, default `KERNEL` radii;
     `located` is ``pipe.locate(samples)`` when already computed.
 
-    With the scanner's `viewpoints` ((3,) or (N, 3), NaN rows where unknown) each point is
-    binned where its beam meets the smoothed wall of a first map, not where the range
+    With the scanner's `beams` (`beam_steps` of the samples, NaN rows where unknown) each
+    point is binned where its beam meets the smoothed wall of a first map, not where the range
     noise put it: noise along an oblique beam also moves a point along the wall, and
     where the scan's density changes (scan lines piling onto one side of a bend) points
     binned where they were measured bias the mean (errors in the variables). The
@@ -109,10 +109,9 @@ def unroll(
     axial, clock, deviation = axial[keep], clock[keep], deviation[keep]
     residual = distance[keep] - ovality.section_at(axial, clock, pipe.radius)
     wall = _map(pipe, axial, clock, deviation, residual, kernel, independent)
-    if viewpoints is None:
+    if beams is None:
         return wall
-    located = (axial, clock, None)
-    s_a, s_b, s_r = beam_steps(pipe, samples[keep], viewpoints, located).T
+    s_a, s_b, s_r = beams[keep].T
     rows, cols = wall.cells(axial, clock)
     smoothed = np.where(rows >= 0, wall.residual[rows, cols], np.nan)
     # the step along the beam to the smoothed wall, where the beam meets it squarely enough
