@@ -2,9 +2,11 @@
 against the truth the damaged-pipe generators record."""
 
 import json
+from dataclasses import replace
 
 import numpy as np
 import pytest
+from scipy import ndimage
 
 from zeroset import io, reconstruct
 from zeroset.cli import main
@@ -12,10 +14,12 @@ from zeroset.errors import InputError
 from zeroset.inspect import (
     clock_label,
     deviation,
+    find_defects,
     fit_pipe,
     inspect_pipe,
     inspection_summary,
 )
+from zeroset.inspect._defects import _significance
 from zeroset.synthetic import (
     Defect,
     damaged_pipe,
@@ -91,6 +95,30 @@ def test_a_clean_pipe_has_no_defect_and_no_ovality(clean_scan):
     assert np.nanmax(inspection.ovality.ovality) < 0.003
     # points' deviations are unbiased: the median is within 0.2 mm of the true wall
     assert abs(np.nanmedian(inspection.point_deviation)) < 2e-4
+
+
+def test_understated_errors_of_the_wall_map_raise_no_false_defect(clean_scan):
+    sample, inspection = clean_scan
+    wall = replace(inspection.wall, error=0.5 * inspection.wall.error)
+    found = find_defects(wall, inspection.pipe, inspection.ovality, sample.points)
+    assert found.defects == ()
+    # the wall's own dispersion scales the halved errors back: the same threshold, within 10 %
+    assert found.threshold == pytest.approx(inspection.defects.threshold, rel=0.1)
+
+
+def test_significance_gives_the_false_alarms_of_smoothed_noise():
+    """Over fields of smoothed white noise, regions beyond +-z number as many as asked."""
+    kernel, size, fields, asked = 2.0, 256, 12, 2.0
+    z = _significance(float(size * size), kernel, false_alarms=asked)
+    assert z > _significance(float(size * size) / 4, kernel, false_alarms=asked)
+    rng = np.random.default_rng(7)
+    regions = 0
+    for _ in range(fields):
+        field = ndimage.gaussian_filter(rng.standard_normal((size, size)), kernel, mode="wrap")
+        field /= 1.0 / (2.0 * np.sqrt(np.pi) * kernel)  # its standard deviation
+        for sign in (1.0, -1.0):
+            regions += ndimage.label(sign * field > z, structure=np.ones((3, 3)))[1]
+    assert 0.6 * asked * fields < regions < 1.5 * asked * fields
 
 
 def test_dents_in_a_scanned_pipe_are_found_with_depth_position_and_clock(dented_scan):

@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import ndimage, optimize
+from scipy import ndimage, optimize, special
 
 from ._centreline import Pipe
 from ._measure import Ovality
@@ -13,10 +13,11 @@ from ._unrolled import WallMap
 
 __all__ = ["Branch", "Defect", "Defects", "find_defects"]
 
-#: The default significance: a cell is judged when its residual exceeds this many
-#: standard errors; on a mesh alone, whose errors are its neighbours' errors too (a ripple
-#: beside a dent), this many robust deviations of the whole wall.
-SIGNIFICANCE = 4.5
+#: Scan points: a cell is judged when its residual exceeds so many standard errors that
+#: noise alone would make this many regions beyond them over the whole wall, on average.
+FALSE_ALARMS = 0.05
+#: A mesh alone, whose errors are its neighbours' errors too (a ripple beside a dent): a
+#: cell is judged when its residual exceeds this many robust deviations of the whole wall.
 MESH_SIGNIFICANCE = 6.0
 #: Cells where at least this share of the samples lies outside the wall are a branch.
 BRANCH = 0.5
@@ -27,6 +28,9 @@ MIN_KERNELS = 0.5
 #: Cells within this many kernels of a cell without data (an open end, an opening, a
 #: shadow) are not judged: the kernel there sees one side only.
 EDGE_KERNELS = 2.0
+#: A bump's fit stops after this many evaluations of its misfit (a bump converges in a few
+#: tens; noise shaped like none may wander for hundreds, and is left unfitted).
+FIT_EVALUATIONS = 100
 
 
 @dataclass(frozen=True)
@@ -120,21 +124,25 @@ def find_defects(
     """Find the regions of the wall map whose residual is significant: dents and bulges.
 
     A cell is judged defective when its residual (the deviation from its station's fitted
-    section) exceeds `SIGNIFICANCE` standard errors (`MESH_SIGNIFICANCE` for a mesh's
-    samples). Connected defective cells, all inward or all outward, make a region (the
-    clock wraps round); regions smaller than `MIN_KERNELS` kernel areas are noise. Cells
-    where the samples leave the wall outward (`BRANCH`) are a branch; with the cells
-    without data next to them (its opening) and `BRANCH_MARGIN` radii around, a region
-    touching them is part of it. Cells within `EDGE_KERNELS` kernels of cells without data
-    (the open ends, a branch's opening, a shadow) are not judged.
+    section) exceeds z standard errors (`_significance`: z grows with the wall's area so that
+    noise alone makes `FALSE_ALARMS` regions over the whole wall), the errors scaled up by
+    the wall's own dispersion of residual over error where it exceeds 1 (what the noise
+    model misses, e.g. the sections' fits, is noise too); for a mesh's samples,
+    `MESH_SIGNIFICANCE` robust deviations of the wall. Connected defective cells, all
+    inward or all outward, make a region (the clock wraps round); regions smaller than
+    `MIN_KERNELS` kernel areas are noise. Cells where the samples leave the wall outward
+    (`BRANCH`) are a branch; with the cells without data next to them (its opening) and
+    `BRANCH_MARGIN` radii around, a region touching them is part of it. Cells within
+    `EDGE_KERNELS` kernels of cells without data (the open ends, a branch's opening, a
+    shadow) are not judged.
 
     The depth and position of each defect come from a raised-cosine bump, plus a
     constant, fitted by least squares to the residuals of the `samples` (N, 3) around it;
     its uncertainty is that fit's standard error. With the scanner's `beams` (`beam_steps` of
     the samples, a row of NaN where unknown) the bump is fitted along them, where the
-    range noise lies (see `_BumpFit.bump`). Defects shallower than `threshold` (metres),
-    when given, are not reported. `located` is ``pipe.locate(samples)`` when already
-    computed.
+    range noise lies (see `_BumpFit.bump`). Defects shallower than `threshold` (metres;
+    default the median over the wall of the residual a cell needs to be significant) are
+    not reported. `located` is ``pipe.locate(samples)`` when already computed.
     """
     residual = wall.residual
     cell_axial = wall.axial_edges[1] - wall.axial_edges[0]
@@ -147,9 +155,14 @@ def find_defects(
         empty, structure=np.ones((3, 3)), iterations=margin, border_value=0
     )[1:-1]
     defined = np.isfinite(residual) & ~near_edge
-    significance = SIGNIFICANCE if wall.independent else MESH_SIGNIFICANCE
-    limit = significance * np.where(defined, wall.error, np.inf)
-    reported = float(np.nanmedian(limit[defined])) if defined.any() else 0.0
+    error = np.where(defined, wall.error, np.inf)
+    significance = MESH_SIGNIFICANCE
+    if wall.independent and defined.any():
+        dispersion = 1.4826 * float(np.median(np.abs(residual[defined] / error[defined])))
+        area = np.count_nonzero(defined) * cell_axial * cell_arc
+        significance = _significance(area, wall.kernel) * max(dispersion, 1.0)
+    limit = significance * error
+    reported = float(np.median(limit[defined])) if defined.any() else 0.0
     if threshold is not None:
         reported = float(threshold)
     leaving = wall.off_wall >= BRANCH
@@ -171,7 +184,7 @@ def find_defects(
         for label in np.setdiff1d(np.flatnonzero(areas >= smallest), touching):
             cells, area = labels == label, areas[label]
             found = _defect(sign, wall, cells, area, pipe, fit)
-            if threshold is None or abs(found.depth) >= threshold:
+            if abs(found.depth) >= reported:
                 defects.append(found)
                 members.append(cells)
     order = np.argsort([-abs(d.depth) for d in defects], kind="stable")
@@ -179,6 +192,23 @@ def find_defects(
     for rank, index in enumerate(order):
         labels[members[index]] = rank
     return Defects(tuple(defects[i] for i in order), tuple(branches), reported, labels)
+
+
+def _significance(area: float, kernel: float, false_alarms: float = FALSE_ALARMS) -> float:
+    """The z beyond which white noise smoothed by a Gaussian `kernel` (standard deviation,
+    m) makes `false_alarms` regions on average over `area` (m^2), above and below.
+
+    The expected number of regions above z is the expected Euler characteristic of the
+    excursion set of a smooth Gaussian field (Worsley et al. 1996), ``P(Z > z) + area
+    lambda / (2 pi)^(3/2) z exp(-z^2 / 2)`` with ``lambda = 1 / (2 kernel^2)`` for smoothed
+    white noise; a long pipe judges more cells than a short one and needs a larger z.
+    """
+    rate = area / (2.0 * kernel**2) / (2.0 * np.pi) ** 1.5
+
+    def excess(z: float) -> float:
+        return 2.0 * (special.ndtr(-z) + rate * z * np.exp(-0.5 * z * z)) - false_alarms
+
+    return float(optimize.brentq(excess, 1.0, 40.0))
 
 
 def _wrapped_labels(mask: np.ndarray) -> np.ndarray:
@@ -306,7 +336,9 @@ class _BumpFit:
             return values - q[0] - q[1] * _raised_cosine(q, a, b)[0]
 
         scale = 3 * np.std(values)
-        found = optimize.least_squares(misfit, start, loss="soft_l1", f_scale=scale)
+        found = optimize.least_squares(
+            misfit, start, loss="soft_l1", f_scale=scale, max_nfev=FIT_EVALUATIONS
+        )
         blurred = self.steps is None
         if found.success and not blurred:
             steps = self.steps[lo:hi][near].T
@@ -315,6 +347,7 @@ class _BumpFit:
                 found.x,
                 loss="soft_l1",
                 f_scale=scale,
+                max_nfev=FIT_EVALUATIONS,
             )
         q = found.x
         centred = abs(q[2]) <= reach_a and abs(q[3]) <= reach_b
