@@ -158,7 +158,7 @@ def test_inspection_summary_reads_the_clock_and_has_no_nan(inspected):
     defect = Defect("bulge", 0.5, 0.0, 0.003, float("nan"), 0.4, 0.6, 350.0, 10.0, 0.09, 0.01)
     clocks = (0.0, 90.0, 15.0, 359.9, 187.5)
     defects = Defects(
-        tuple(replace(defect, clock=c) for c in clocks), (), 0.002, inspection.defects.labels
+        tuple(replace(defect, clock=c) for c in clocks), (), 0.002, 5.0, inspection.defects.labels
     )
     unfitted = np.full_like(inspection.ovality.ovality, np.nan)
     no_station = replace(inspection.ovality, ovality=unfitted)

@@ -104,6 +104,8 @@ def test_understated_errors_of_the_wall_map_raise_no_false_defect(clean_scan):
     assert found.defects == ()
     # the wall's own dispersion scales the halved errors back: the same threshold, within 10 %
     assert found.threshold == pytest.approx(inspection.defects.threshold, rel=0.1)
+    assert found.significance == pytest.approx(2.0 * inspection.defects.significance, rel=0.1)
+    assert inspection.defects.significance > 4.5  # a 2 m pipe's z, times at least 1
 
 
 def test_significance_gives_the_false_alarms_of_smoothed_noise():

@@ -98,6 +98,8 @@ class Defects:
     threshold : float
         The smallest depth reported, metres: given, or the median over the wall of the
         residual a cell needs to be significant.
+    significance : float
+        How many of its standard errors a cell's residual needed (see `find_defects`).
     labels : (A, C) int64
         Index into `defects` of each cell of the wall map, -1 for none.
     """
@@ -105,6 +107,7 @@ class Defects:
     defects: tuple[Defect, ...]
     branches: tuple[Branch, ...]
     threshold: float
+    significance: float
     labels: np.ndarray
 
     def __post_init__(self) -> None:
@@ -191,7 +194,9 @@ def find_defects(
     labels = np.full(residual.shape, -1, dtype=np.int64)
     for rank, index in enumerate(order):
         labels[members[index]] = rank
-    return Defects(tuple(defects[i] for i in order), tuple(branches), reported, labels)
+    return Defects(
+        tuple(defects[i] for i in order), tuple(branches), reported, significance, labels
+    )
 
 
 def _significance(area: float, kernel: float, false_alarms: float = FALSE_ALARMS) -> float:

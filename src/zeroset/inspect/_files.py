@@ -73,7 +73,8 @@ def inspection_summary(inspection: Inspection) -> dict:
     -------
     dict
         ``nominal_diameter``, ``measured_diameter``, ``length`` and ``threshold`` (the
-        smallest depth judged a defect), metres; ``max_ovality`` and ``median_ovality``,
+        smallest depth judged a defect), metres; ``significance``, the standard errors a
+        cell's residual needed to count; ``max_ovality`` and ``median_ovality``,
         ``(D_max - D_min) / D_nominal`` over the stations that measured one (None when
         none did), and ``ovality_stations``, their count; ``defects``, one dict per
         `Defect`, deepest first, with its fields (metres, degrees, square metres), its
@@ -90,6 +91,7 @@ def inspection_summary(inspection: Inspection) -> dict:
         "measured_diameter": 2.0 * pipe.measured_radius,
         "length": pipe.length,
         "threshold": found.threshold,
+        "significance": found.significance,
         "max_ovality": float(fitted.max()) if fitted.size else None,
         "median_ovality": float(np.median(fitted)) if fitted.size else None,
         "ovality_stations": int(fitted.size),
@@ -154,7 +156,8 @@ def inspection_lines(inspection: Inspection) -> list[str]:
             if facts["max_ovality"] is not None
             else "not measured: the data do not go round the pipe"
         ),
-        f"defects     {len(facts['defects'])} beyond {1000 * facts['threshold']:.2f} mm",
+        f"defects     {len(facts['defects'])} beyond {1000 * facts['threshold']:.2f} mm "
+        f"({facts['significance']:.1f} standard errors)",
     ]
     for row in defect_rows(inspection):
         error = row["uncertainty_mm"]
