@@ -223,8 +223,13 @@ def _long_pipe() -> list[str]:
         f"- **20 m pipe, {sample.points.shape[0]:,} points** (21 scans 1 m apart): "
         f"reconstruct {rec:.1f} s + inspect {ins:.1f} s = **{rec + ins:.1f} s**, "
         f"{verdict} the target of {TARGET_SECONDS:.0f} s on 2 cores; "
-        f"{sum(r['found'] for r in rows)}/{len(rows)} defects found, "
-        f"{len(inspection.defects.defects) - len(rows)} where there is none; inspection "
+        f"{sum(r['found'] for r in rows)}/{len(rows)} defects found (depth errors "
+        + ", ".join(
+            f"{1000 * r['truth']['depth']:.0f} mm {r['truth']['kind']} "
+            + ("not found" if r["depth"] is None else f"{1000 * r['depth']:+.1f} mm")
+            for r in rows
+        )
+        + f"), {len(inspection.defects.defects) - len(rows)} where there is none; inspection "
         "stages: "
         + ", ".join(f"{name} {seconds:.1f} s" for name, seconds in inspection.timings.items())
         + "."
