@@ -194,6 +194,19 @@ def test_elbow_dents_and_bulges_are_found_and_a_clean_elbow_has_none():
     assert abs(clean_inspection.pipe.length - (1.0 + 0.3 * np.pi)) < 0.03
 
 
+def test_a_clean_elbow_scanned_along_its_centreline_has_no_defect():
+    """The scan lines pile onto the outer wall of the bend, and the curvature jumps where the
+    bend meets a leg: neither is a defect."""
+    stations = tuple(0.25 * k for k in range(1, 8))  # along the 1.94 m centreline
+    sample = scan_damaged_pipe(shape="elbow", stations=stations, rotation_step=2.0, rng=11)
+    inspection = inspect_pipe(_reconstructed(sample), sample.points, viewpoints=sample.viewpoints)
+    assert inspection.defects.defects == ()
+    assert abs(inspection.pipe.radius - 0.25) < 5e-4
+    record = sample.truth_record
+    centreline = 2 * record["leg"] + record["bend_radius"] * np.pi / 2
+    assert abs(inspection.pipe.length - centreline) < 0.03
+
+
 def test_a_tee_reports_its_branch_and_no_defect_at_the_opening():
     sample = sample_tee(150_000, noise=0.002, rng=5)
     inspection = inspect_pipe(_reconstructed(sample), sample.points)
