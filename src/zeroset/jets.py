@@ -82,6 +82,10 @@ MIN_CELLS = 16
 MISFIT_LIMIT, MISFIT_HALVINGS = 4.0, 2
 #: Jets blended at a position (the partition of unity uses one more for its reach).
 BLEND_K = 8
+#: A neighbour further from a jet's tangent plane than the surface's curvature explains,
+#: by this many rho+delta or this many noise levels if more, is on another sheet, and the
+#: jet is not fitted to it; rows of jets checked at a time.
+SHEET, SHEET_NOISE, SHEET_CHUNK = 1.0, 4.0, 16_384
 #: Oriented planes that vote on each jet's orientation.
 ORIENT_K = 8
 #: Every value of the surface lies within this many rho+delta of all the points it
@@ -186,7 +190,12 @@ def fit_jets(
             continue
         k = min(FIT_K, cells.shape[0])
         distances, indices = build_tree(cells).query(cells[rows], k=k, workers=-1)
-        radius = np.minimum(radius[rows], distances[:, -1])
+        distances, indices = _own_sheet(
+            cells[rows], cells, indices, distances, pilots, pilot_tree,
+            max(SHEET * rho_delta, SHEET_NOISE * sigma),
+        )
+        farthest = np.where(np.isfinite(distances), distances, 0.0).max(axis=1)
+        radius = np.minimum(radius[rows], farthest)
         fit = fit_rows(cells, counts, spread, indices, distances, radius, min(MIN_CELLS, k))
         for _ in range(MISFIT_HALVINGS):
             bad = np.flatnonzero(fit[5] > MISFIT_LIMIT * sigma**2)
@@ -299,6 +308,33 @@ def concatenate_jets(parts: list[Jets]) -> Jets:
         radii=np.concatenate([j.radii for j in parts]),
         notes=parts[0].notes,
     )
+
+
+def _own_sheet(centres, cells, indices, distances, pilots: Jets, pilot_tree, margin: float):
+    """The neighbour `cells` of each of `centres` (R, 3) (`indices`, `distances` (R, K), by
+    distance) on its own sheet first, by distance; those on another sheet after them, at an
+    infinite distance, so that no fit reaches them.
+
+    A neighbour is on another sheet when it lies further from the tangent plane of the
+    pilot nearest the centre than that pilot's curvature bends the surface at its distance,
+    plus `margin` (data units): a second wall a few rho+delta away (two plates, the walls of
+    a jacketed pipe). A fit that counted it would pass between the two walls; the fewest
+    cells a fit takes (`MIN_CELLS`) would otherwise stretch a support across. A centre with
+    fewer than `MIN_CELLS` neighbours on its own sheet keeps them all.
+    """
+    _, pilot = pilot_tree.query(centres, workers=-1)
+    normal, curvature = pilots.frames[pilot, 2], pilots.curvature[pilot]
+    other = np.zeros(indices.shape, dtype=bool)
+    for start in range(0, indices.shape[0], SHEET_CHUNK):
+        part = slice(start, start + SHEET_CHUNK)
+        offset = cells[indices[part]] - centres[part, None, :]
+        height = np.abs(np.einsum("rkd,rd->rk", offset, normal[part]))
+        along = np.maximum(distances[part] ** 2 - height**2, 0.0)
+        other[part] = height > 0.5 * curvature[part, None] * along + margin
+    other[(~other).sum(axis=1) < min(MIN_CELLS, indices.shape[1])] = False
+    distances = np.where(other, np.inf, distances)
+    order = np.argsort(distances, axis=1, kind="stable")
+    return np.take_along_axis(distances, order, 1), np.take_along_axis(indices, order, 1)
 
 
 def _nearest_median(tree, values: np.ndarray, positions: np.ndarray) -> np.ndarray:
