@@ -30,6 +30,13 @@ UNTRUSTED = 0.05
 ABRUPT = 0.1
 #: Mean |cosine| from which a component's own sensors decide its sign in the vote.
 DECISIVE = 0.3
+#: A component is joined to the largest only by a pair of points whose step lies within 60
+#: degrees of both their tangent planes: |cosine| to each normal at most this (`_bridges`).
+ON_ONE_SURFACE = 0.5
+#: Without viewpoints, components whose points come within this many of their max_edge of
+#: each other are neighbours that must not point the same way across the gap (`_unstack`);
+#: the largest this many components take part, each with at most `STACK_SAMPLES` points.
+STACK_REACH, STACK_COMPONENTS, STACK_SAMPLES = 6.0, 16, 20_000
 #: Weight of the tree edges joining the virtual root to the anchored points: below every
 #: graph edge (whose weights are at least 1e-9), so that each anchor hangs from the root.
 _ANCHOR_WEIGHT = 1e-12
@@ -141,6 +148,11 @@ def orient_normals(
     )
     tree = minimum_spanning_tree(sparse.block_diag([graph, sparse.csr_matrix((1, 1))]) + virtual)
     signs = _walk(tree, normals, root_sign)
+    turned = 0
+    if viewpoints is None and n_components > 1 and max_edge is not None:
+        turn = _unstack(centroids, normals * signs[:, None], component, STACK_REACH * max_edge)
+        signs *= turn[component]
+        turned = int(np.count_nonzero(turn < 0))
     disagreement, trusted = None, True
     if viewpoints is not None:
         cosine = _sensor_cosine(centroids, normals, viewpoints)
@@ -162,7 +174,63 @@ def orient_normals(
         roots=roots.astype(np.int64),
         method=method,
         disagreement=disagreement,
+        turned=turned,
     )
+
+
+def _unstack(centroids, normals, component, reach) -> np.ndarray:
+    """Sign (C,) per component: -1 for the components to turn so that no two neighbouring
+    components point the same way across the gap between them.
+
+    Between two sheets whose oriented `normals` point the same way (two plates both up, two
+    pipes one inside the other both outward), one side's distance is positive and the
+    other's negative, so any field passes through zero between them: contouring draws a
+    surface there, or breaks the sheets where a cube's corner lies past the middle. Facing
+    each other (an air gap) or away (the two faces of a slab), they agree in sign across
+    it, and closed surfaces already do either. Points are paired with the nearest point of
+    another component within their `reach` (N,); each pair whose step d from i to j crosses
+    both tangent planes (|cosine| to each normal above `ON_ONE_SURFACE`; a step along one
+    surface, between two pieces of it, says nothing) votes sign(n_i . d) sign(-n_j . d),
+    and the components are turned from the largest, along the strongest votes, so that
+    every vote followed is positive.
+    """
+    sizes = np.bincount(component)
+    taking = np.argsort(-sizes, kind="stable")[:STACK_COMPONENTS]
+    rng = np.random.default_rng(0)
+    members = {}
+    for c in taking:
+        points = np.flatnonzero(component == c)
+        if points.size > STACK_SAMPLES:
+            points = np.sort(rng.choice(points, STACK_SAMPLES, replace=False))
+        members[c] = points
+    votes = np.zeros((sizes.size, sizes.size))
+    for c in taking:
+        others = np.concatenate([members[o] for o in taking if o != c])
+        if others.size == 0:
+            continue
+        distance, nearest = build_tree(centroids[members[c]]).query(
+            centroids[others], distance_upper_bound=float(reach[others].max()), workers=-1
+        )
+        found = distance <= reach[others]
+        i, j = others[found], members[c][nearest[found]]
+        step = centroids[j] - centroids[i]
+        step /= np.maximum(np.linalg.norm(step, axis=1), 1e-300)[:, None]
+        out_i = np.einsum("ij,ij->i", normals[i], step)
+        out_j = -np.einsum("ij,ij->i", normals[j], step)
+        across = (np.abs(out_i) > ON_ONE_SURFACE) & (np.abs(out_j) > ON_ONE_SURFACE)
+        np.add.at(votes, (component[i][across], c), np.sign(out_i * out_j)[across])
+    votes = votes + votes.T
+    turn = np.ones(sizes.size)
+    settled = {int(taking[0])}
+    while True:
+        weight = np.abs(votes[sorted(settled)])
+        weight[:, sorted(settled)] = 0.0
+        if not weight.any():
+            return turn
+        row, col = np.unravel_index(np.argmax(weight), weight.shape)
+        settled_c = sorted(settled)[row]
+        turn[col] = turn[settled_c] * np.sign(votes[settled_c, col])
+        settled.add(int(col))
 
 
 def _abrupt(agree, anchored, rows, cols) -> float:
@@ -211,7 +279,10 @@ def _bridges(centroids, normals, component, reach) -> sparse.csr_matrix:
 
     Sparse parts of a scan (far down a pipe) fall apart into small components that belong
     to the surface next to them; each is joined by its closest pair of points, as Hoppe's
-    Euclidean minimum spanning tree would join it. Separate objects stay apart.
+    Euclidean minimum spanning tree would join it, if that pair lies on one surface: the
+    step between them within 60 degrees of both tangent planes (|cos| to each normal at
+    most `ON_ONE_SURFACE`). Separate objects stay apart, and so do two sheets facing each
+    other across a gap (two plates, two pipes one inside the other).
     """
     n = centroids.shape[0]
     largest = np.argmax(np.bincount(component))
@@ -221,6 +292,10 @@ def _bridges(centroids, normals, component, reach) -> sparse.csr_matrix:
         centroids[others], distance_upper_bound=float(reach[others].max()), workers=-1
     )
     found = distance <= reach[others]
+    step = centroids[main[np.where(found, nearest, 0)]] - centroids[others]
+    step /= np.maximum(np.linalg.norm(step, axis=1), 1e-300)[:, None]
+    for end in (normals[others], normals[main[np.where(found, nearest, 0)]]):
+        found &= np.abs(np.einsum("ij,ij->i", step, end)) <= ON_ONE_SURFACE
     # The closest pair of each component.
     order = np.lexsort((distance[found], component[others[found]]))
     first = np.ones(order.size, dtype=bool)

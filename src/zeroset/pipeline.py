@@ -355,6 +355,7 @@ def fit_planes(local, viewpoints, parameters, config, stats, stages) -> FittedPl
             viewpoints=viewpoints,
         )
         stats["orientation_components"] = orientation.n_components
+        stats["orientation_turned"] = orientation.turned
         if orientation.disagreement is not None:
             stats["orientation_disagreement"] = orientation.disagreement
             stats["viewpoints_untrusted"] = int(orientation.viewpoints_untrusted)

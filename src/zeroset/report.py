@@ -181,6 +181,12 @@ def format_report(report: dict) -> str:
         *_surface_lines(report["config"].get("surface", "jets"), stats),
         *_tile_lines(stats),
         f"orientation {stats['orientation_components']} component(s)"
+        + (
+            f", {stats['orientation_turned']} turned so that no two sheets across a gap "
+            "point the same way"
+            if stats.get("orientation_turned")
+            else ""
+        )
         + _disagreement(
             stats.get("orientation_disagreement"), stats.get("viewpoints_untrusted")
         ),

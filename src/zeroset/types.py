@@ -205,6 +205,9 @@ class Orientation(_Frozen):
         With viewpoints: the share of the points that face their sensor clearly whose
         sensor and the spanning tree alone (each component's sign set by its sensors' vote)
         orient them oppositely; None without.
+    turned : int
+        Components turned whole so as not to point the same way as a neighbouring one
+        across the gap between them (without viewpoints, see `zeroset.orientation`).
     """
 
     normals: np.ndarray
@@ -213,6 +216,7 @@ class Orientation(_Frozen):
     roots: np.ndarray
     method: str
     disagreement: float | None = None
+    turned: int = 0
 
     @property
     def viewpoints_untrusted(self) -> bool:

@@ -1,0 +1,59 @@
+"""Separate surfaces a few rho+delta apart stay separate: no face across the gap, each
+sheet whole and where it is."""
+
+import numpy as np
+import pytest
+
+from zeroset import reconstruct, topology
+from zeroset.evaluate import points_to_mesh_distance
+
+
+def _plates(gap: float, n: int = 40_000, size: float = 0.6, noise: float = 0.001):
+    """(n, 3) two parallel squares `gap` apart (z = 0 and z = gap), evenly sampled."""
+    rng = np.random.default_rng(3)
+    z = np.where(np.arange(n) < n // 2, 0.0, gap) + noise * rng.standard_normal(n)
+    return np.c_[rng.uniform(0.0, size, (n, 2)), z]
+
+
+def _concentric(inner: float, outer: float, n: int = 60_000, noise: float = 0.001):
+    """(n, 3) two open coaxial pipes of radii `inner` and `outer`, 1 m long, evenly sampled."""
+    rng = np.random.default_rng(4)
+    radius = np.where(np.arange(n) < n * inner / (inner + outer), inner, outer)
+    radius = radius + noise * rng.standard_normal(n)
+    angle = rng.uniform(0.0, 2.0 * np.pi, n)
+    return np.c_[radius * np.cos(angle), radius * np.sin(angle), rng.uniform(0.0, 1.0, n)]
+
+
+def _pieces(mesh) -> int:
+    return topology.face_components(mesh.faces, mesh.n_vertices)[0]
+
+
+@pytest.mark.parametrize("fit_support", [None, 0.026, 0.078])
+def test_two_plates_three_rho_delta_apart_stay_two_plates(fit_support):
+    gap = 0.04
+    points = _plates(gap)
+    result = reconstruct(points, progress=False, fit_support=fit_support)
+    mesh = result.mesh
+    assert gap < 3.5 * result.parameters.rho_delta  # well inside the old webbing range
+    assert _pieces(mesh) == 2
+    assert len(topology.boundary_loops(mesh.faces)) == 2
+    assert result.stats["small_holes_filled"] == 0
+    middle = mesh.vertices[mesh.faces].mean(axis=1)[:, 2]
+    assert not np.any((middle > 0.25 * gap) & (middle < 0.75 * gap))  # nothing across
+    # each plate whole and in place: the true walls lie on the mesh
+    inner = np.all((points[:, :2] > 0.05) & (points[:, :2] < 0.55), axis=1)
+    walls = np.c_[points[inner, :2], np.where(points[inner, 2] > gap / 2, gap, 0.0)][::10]
+    assert np.quantile(points_to_mesh_distance(walls, mesh), 0.99) < 0.003  # metres
+
+
+def test_two_pipes_one_inside_the_other_stay_two_pipes():
+    inner, outer = 0.31, 0.35
+    result = reconstruct(_concentric(inner, outer), progress=False)
+    mesh = result.mesh
+    assert outer - inner < 2.0 * result.parameters.rho_delta
+    assert _pieces(mesh) == 2
+    assert len(topology.boundary_loops(mesh.faces)) == 4  # two rims each
+    radial = np.hypot(*mesh.vertices[:, :2].T)
+    assert np.all((np.abs(radial - inner) < 0.01) | (np.abs(radial - outer) < 0.01))
+    # the inner pipe faces the outer one across the gap, not the same way
+    assert result.orientation.turned == 1
