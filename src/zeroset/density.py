@@ -16,7 +16,7 @@ import numpy as np
 from ._kernels.density import sector_nearest
 from ._kernels.linalg import eigh_rows
 from ._kernels.normals import centroid_covariance
-from .neighbours import build_tree, on_one_surface
+from .neighbours import build_tree
 
 __all__ = [
     "SECTORS",
@@ -139,7 +139,7 @@ def point_radii(sectors, neighbours, *, rho_delta: float, margin) -> np.ndarray:
     return np.where(radii <= RADIUS_CAP * rho_delta, np.maximum(radii, rho_delta), rho_delta)
 
 
-def gap_bridges(points, sectors, *, rho_delta: float, tree=None, normals=None) -> np.ndarray:
+def gap_bridges(points, sectors, *, rho_delta: float, tree=None) -> np.ndarray:
     """Points (B, 3) along the chords that cross narrow gaps in the sampling.
 
     A scan's sampling can leave gaps wider than the cloud's radius between well-sampled
@@ -152,9 +152,7 @@ def gap_bridges(points, sectors, *, rho_delta: float, tree=None, normals=None) -
     limit cross, so holes wider than about ``BRIDGE_LENGTH rho_delta`` stay open, as do
     open ends (nothing lies beyond). A chord must leave its first point on the side away
     from that point's neighbours (cosine at least ``CROSSING``): it crosses the gap, and
-    does not run along the edge of an open end. With `normals`, a chord must also join two
-    points of one surface (`zeroset.neighbours.on_one_surface`): a gap between two sheets
-    (two plates, two pipes one inside the other) is not bridged.
+    does not run along the edge of an open end.
 
     Parameters
     ----------
@@ -165,8 +163,6 @@ def gap_bridges(points, sectors, *, rho_delta: float, tree=None, normals=None) -
     rho_delta : float
     tree : cKDTree, optional
         A tree over `points`, to reuse one already built.
-    normals : (N, 3) float64, optional
-        Unit normals of `points`, either sign.
     """
     edge = np.flatnonzero(~np.isfinite(sectors).all(axis=1))
     if edge.size == 0:
@@ -182,8 +178,7 @@ def gap_bridges(points, sectors, *, rho_delta: float, tree=None, normals=None) -
     gap = np.isfinite(length) & (length > rho_delta)
     rows, direction = np.nonzero(gap)
     start = points[edge[rows]]
-    partner = indices[rows, column[rows, direction]]
-    end = points[partner]
+    end = points[indices[rows, column[rows, direction]]]
     # The side of each edge point away from its neighbours within rho_delta: a chord
     # across a gap leaves that way; one along the edge of the data does not.
     close = distances <= rho_delta
@@ -193,8 +188,6 @@ def gap_bridges(points, sectors, *, rho_delta: float, tree=None, normals=None) -
     leaves = np.einsum("ij,ij->i", chord, away[rows]) >= CROSSING * np.linalg.norm(
         chord, axis=1
     ) * np.linalg.norm(away[rows], axis=1)
-    if normals is not None:
-        leaves &= on_one_surface(chord, normals[edge[rows]], normals[partner])
     rows, direction, start, end = rows[leaves], direction[leaves], start[leaves], end[leaves]
     # Each chord is cut into `steps` pieces; its steps - 1 inner cut points are bridges.
     steps = np.ceil(length[rows, direction] / (BRIDGE_STEP * rho_delta)).astype(np.int64)

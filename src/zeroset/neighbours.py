@@ -7,29 +7,12 @@ from scipy.spatial import cKDTree
 
 from .types import Neighbourhoods
 
-__all__ = ["build_tree", "knn", "on_one_surface", "restrict", "spatial_order"]
-
-#: Two points are on one surface when the step between them lies within 60 degrees of both
-#: their tangent planes, and their normals within 60 degrees of each other (either sign):
-#: each |cosine| at most, and at least, this.
-ON_ONE_SURFACE = 0.5
+__all__ = ["build_tree", "knn", "restrict", "spatial_order"]
 
 
 def build_tree(points: np.ndarray) -> cKDTree:
     """Build a k-d tree over (N, 3) float64 `points` (unbalanced: quick to build)."""
     return cKDTree(points, balanced_tree=False, compact_nodes=False)
-
-
-def on_one_surface(step: np.ndarray, normals_a: np.ndarray, normals_b: np.ndarray) -> np.ndarray:
-    """(M,) bool: whether each `step` (M, 3) from a point of unit normal `normals_a` (M, 3)
-    to one of `normals_b` joins two points of one surface (`ON_ONE_SURFACE`), not two
-    sheets across a gap (the step crosses their tangent planes) or two objects meeting at an
-    angle (their normals differ). Gap bridges and the orientation graph join only those."""
-    length = np.maximum(np.linalg.norm(step, axis=1), 1e-300)
-    along_a = np.abs(np.einsum("ij,ij->i", step, normals_a)) <= ON_ONE_SURFACE * length
-    along_b = np.abs(np.einsum("ij,ij->i", step, normals_b)) <= ON_ONE_SURFACE * length
-    agree = np.abs(np.einsum("ij,ij->i", normals_a, normals_b)) >= ON_ONE_SURFACE
-    return along_a & along_b & agree
 
 
 #: Bits per axis of the Morton (Z-order) key: 3 x 21 bits fit in int64.

@@ -9,7 +9,7 @@ from scipy.sparse.csgraph import breadth_first_order, connected_components, mini
 from ._kernels.orientation import component_extremes, propagate_signs
 from ._validate import as_points, as_viewpoints, positive
 from .errors import InputError
-from .neighbours import ON_ONE_SURFACE, build_tree, knn, on_one_surface
+from .neighbours import build_tree, knn
 from .types import VIEWPOINTS_UNTRUSTED, Neighbourhoods, Orientation
 
 __all__ = ["orient_normals"]
@@ -30,6 +30,9 @@ UNTRUSTED = 0.05
 ABRUPT = 0.1
 #: Mean |cosine| from which a component's own sensors decide its sign in the vote.
 DECISIVE = 0.3
+#: A component is joined to the largest only by a pair of points whose step lies within 60
+#: degrees of both their tangent planes: |cosine| to each normal at most this (`_bridges`).
+ON_ONE_SURFACE = 0.5
 #: Without viewpoints, components whose points come within this many of their max_edge of
 #: each other are neighbours that must not point the same way across the gap (`_unstack`);
 #: the largest this many components take part, each with at most `STACK_SAMPLES` points.
@@ -186,7 +189,7 @@ def _unstack(centroids, normals, component, reach) -> np.ndarray:
     each other (an air gap) or away (the two faces of a slab), they agree in sign across
     it, and closed surfaces already do either. Points are paired with the nearest point of
     another component within their `reach` (N,); each pair whose step d from i to j crosses
-    both tangent planes (|cosine| to each normal above ``ON_ONE_SURFACE``; a step along one
+    both tangent planes (|cosine| to each normal above `ON_ONE_SURFACE`; a step along one
     surface, between two pieces of it, says nothing) votes sign(n_i . d) sign(-n_j . d),
     and the components are turned from the largest, along the strongest votes, so that
     every vote followed is positive.
@@ -276,9 +279,10 @@ def _bridges(centroids, normals, component, reach) -> sparse.csr_matrix:
 
     Sparse parts of a scan (far down a pipe) fall apart into small components that belong
     to the surface next to them; each is joined by its closest pair of points, as Hoppe's
-    Euclidean minimum spanning tree would join it, if that pair lies on one surface
-    (`zeroset.neighbours.on_one_surface`). Separate objects stay apart, and so do two sheets
-    across a gap (two plates, two pipes one inside the other).
+    Euclidean minimum spanning tree would join it, if that pair lies on one surface: the
+    step between them within 60 degrees of both tangent planes (|cos| to each normal at
+    most `ON_ONE_SURFACE`). Separate objects stay apart, and so do two sheets facing each
+    other across a gap (two plates, two pipes one inside the other).
     """
     n = centroids.shape[0]
     largest = np.argmax(np.bincount(component))
@@ -288,9 +292,10 @@ def _bridges(centroids, normals, component, reach) -> sparse.csr_matrix:
         centroids[others], distance_upper_bound=float(reach[others].max()), workers=-1
     )
     found = distance <= reach[others]
-    partner = main[np.where(found, nearest, 0)]
-    step = centroids[partner] - centroids[others]
-    found &= on_one_surface(step, normals[others], normals[partner])
+    step = centroids[main[np.where(found, nearest, 0)]] - centroids[others]
+    step /= np.maximum(np.linalg.norm(step, axis=1), 1e-300)[:, None]
+    for end in (normals[others], normals[main[np.where(found, nearest, 0)]]):
+        found &= np.abs(np.einsum("ij,ij->i", step, end)) <= ON_ONE_SURFACE
     # The closest pair of each component.
     order = np.lexsort((distance[found], component[others[found]]))
     first = np.ones(order.size, dtype=bool)

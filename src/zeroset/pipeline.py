@@ -406,9 +406,7 @@ def distance_field(
     back to that edge (`trim_rim`)."""
     with stages.stage("signed distance"):
         bridges = (
-            gap_bridges(
-                fitted.points, fitted.sectors, rho_delta=parameters.rho_delta, normals=normals
-            )
+            gap_bridges(fitted.points, fitted.sectors, rho_delta=parameters.rho_delta)
             if config.gap_bridges
             else np.zeros((0, 3))
         )
