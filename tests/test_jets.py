@@ -6,7 +6,7 @@ import pytest
 
 from zeroset import reconstruct, topology
 from zeroset.config import ReconstructionConfig
-from zeroset.evaluate import points_to_mesh_distance, sample_surface
+from zeroset.evaluate import sample_surface
 from zeroset.jets import evaluate_jets, fit_jets, orient_jets
 from zeroset.parameters import estimate_parameters
 from zeroset.refine import project_to_surface, split_edges
@@ -219,27 +219,3 @@ def test_bad_surface_options_are_refused(option, message):
     with pytest.raises(ValueError, match=message):
         ReconstructionConfig(**option)
 
-
-def _plates(gap: float, n: int = 40_000, size: float = 0.6, noise: float = 0.001):
-    """Two parallel squares `gap` apart (z = 0 and z = gap), sampled evenly with noise."""
-    rng = np.random.default_rng(5)
-    z = np.where(np.arange(n) < n // 2, 0.0, gap) + noise * rng.standard_normal(n)
-    return np.c_[rng.uniform(0.0, size, (n, 2)), z]
-
-
-def test_jets_near_a_second_wall_fit_their_own():
-    """Plates 4 cm apart, about 3 rho+delta: a support that reached the other plate, as the
-    fewest cells a fit takes made it, drew each plate about 7 mm towards the other, and the
-    mesh lost nearly all of both."""
-    gap = 0.04
-    points = _plates(gap)
-    result = reconstruct(points, progress=False, gap_bridges=False)
-    assert 2.5 * result.parameters.rho_delta < gap < 4.0 * result.parameters.rho_delta
-    inner = np.all((points[:, :2] > 0.1) & (points[:, :2] < 0.5), axis=1)
-    on_wall = np.c_[points[inner, :2], np.where(points[inner, 2] > gap / 2, gap, 0.0)]
-    values, _ = evaluate_jets(result.jets, on_wall - result.offset)
-    for wall in (on_wall[:, 2] == 0.0, on_wall[:, 2] == gap):
-        assert abs(np.median(values[wall])) < 3e-4  # metres: each wall where it is
-    # and the mesh covers both walls: true points on them lie near it
-    far = points_to_mesh_distance(on_wall[::20], result.mesh)
-    assert np.quantile(far, 0.95) < 0.005

@@ -6,6 +6,7 @@ import pytest
 
 from zeroset import reconstruct, topology
 from zeroset.evaluate import points_to_mesh_distance
+from zeroset.jets import evaluate_jets
 
 
 def _plates(gap: float, n: int = 40_000, size: float = 0.6, noise: float = 0.001):
@@ -57,3 +58,21 @@ def test_two_pipes_one_inside_the_other_stay_two_pipes():
     assert np.all((np.abs(radial - inner) < 0.01) | (np.abs(radial - outer) < 0.01))
     # the inner pipe faces the outer one across the gap, not the same way
     assert result.orientation.turned == 1
+
+
+def test_jets_near_a_second_wall_fit_their_own():
+    """Plates 4 cm apart, about 3 rho+delta: a support that reached the other plate, as the
+    fewest cells a fit takes made it, drew each plate about 7 mm towards the other, and the
+    mesh lost nearly all of both."""
+    gap = 0.04
+    points = _plates(gap)
+    result = reconstruct(points, progress=False, gap_bridges=False)
+    assert 2.5 * result.parameters.rho_delta < gap < 4.0 * result.parameters.rho_delta
+    inner = np.all((points[:, :2] > 0.1) & (points[:, :2] < 0.5), axis=1)
+    on_wall = np.c_[points[inner, :2], np.where(points[inner, 2] > gap / 2, gap, 0.0)]
+    values, _ = evaluate_jets(result.jets, on_wall - result.offset)
+    for wall in (on_wall[:, 2] == 0.0, on_wall[:, 2] == gap):
+        assert abs(np.median(values[wall])) < 3e-4  # metres: each wall where it is
+    # and the mesh covers both walls: true points on them lie near it
+    far = points_to_mesh_distance(on_wall[::20], result.mesh)
+    assert np.quantile(far, 0.95) < 0.005

@@ -196,41 +196,50 @@ def _unstack(centroids, normals, component, reach) -> np.ndarray:
     """
     sizes = np.bincount(component)
     taking = np.argsort(-sizes, kind="stable")[:STACK_COMPONENTS]
+    slot = np.full(sizes.size, -1)
+    slot[taking] = np.arange(taking.size)
     rng = np.random.default_rng(0)
-    members = {}
+    members = []
     for c in taking:
         points = np.flatnonzero(component == c)
         if points.size > STACK_SAMPLES:
             points = np.sort(rng.choice(points, STACK_SAMPLES, replace=False))
-        members[c] = points
-    votes = np.zeros((sizes.size, sizes.size))
-    for c in taking:
-        others = np.concatenate([members[o] for o in taking if o != c])
+        members.append(points)
+    votes = np.zeros((taking.size, taking.size))  # between the components taking part
+    for b, own in enumerate(members):
+        others = np.concatenate([m for a, m in enumerate(members) if a != b])
         if others.size == 0:
             continue
-        distance, nearest = build_tree(centroids[members[c]]).query(
+        distance, nearest = build_tree(centroids[own]).query(
             centroids[others], distance_upper_bound=float(reach[others].max()), workers=-1
         )
         found = distance <= reach[others]
-        i, j = others[found], members[c][nearest[found]]
-        step = centroids[j] - centroids[i]
-        step /= np.maximum(np.linalg.norm(step, axis=1), 1e-300)[:, None]
-        out_i = np.einsum("ij,ij->i", normals[i], step)
-        out_j = -np.einsum("ij,ij->i", normals[j], step)
-        across = (np.abs(out_i) > ON_ONE_SURFACE) & (np.abs(out_j) > ON_ONE_SURFACE)
-        np.add.at(votes, (component[i][across], c), np.sign(out_i * out_j)[across])
-    votes = votes + votes.T
-    turn = np.ones(sizes.size)
-    settled = {int(taking[0])}
+        i, j = others[found], own[nearest[found]]
+        cos_i, cos_j = _step_cosines(centroids[j] - centroids[i], normals[i], normals[j])
+        across = (np.abs(cos_i) > ON_ONE_SURFACE) & (np.abs(cos_j) > ON_ONE_SURFACE)
+        # n_i . d > 0: i faces j; -n_j . d > 0: j faces i; facing alike agrees
+        np.add.at(votes, (slot[component[i[across]]], b), -np.sign(cos_i * cos_j)[across])
+    votes += votes.T
+    sign = np.zeros(taking.size)
+    sign[0] = 1.0
     while True:
-        weight = np.abs(votes[sorted(settled)])
-        weight[:, sorted(settled)] = 0.0
+        weight = np.abs(votes) * ((sign != 0.0)[:, None] & (sign == 0.0)[None, :])
         if not weight.any():
-            return turn
-        row, col = np.unravel_index(np.argmax(weight), weight.shape)
-        settled_c = sorted(settled)[row]
-        turn[col] = turn[settled_c] * np.sign(votes[settled_c, col])
-        settled.add(int(col))
+            break
+        a, b = np.unravel_index(np.argmax(weight), weight.shape)
+        sign[b] = sign[a] * np.sign(votes[a, b])
+    turn = np.ones(sizes.size)
+    turn[taking] = np.where(sign == 0.0, 1.0, sign)
+    return turn
+
+
+def _step_cosines(step, normals_a, normals_b) -> tuple[np.ndarray, np.ndarray]:
+    """Cosines (M,), (M,) between each `step` (M, 3) and the unit normals at its two ends."""
+    unit_step = step / np.maximum(np.linalg.norm(step, axis=1), 1e-300)[:, None]
+    return (
+        np.einsum("ij,ij->i", unit_step, normals_a),
+        np.einsum("ij,ij->i", unit_step, normals_b),
+    )
 
 
 def _abrupt(agree, anchored, rows, cols) -> float:
@@ -292,10 +301,11 @@ def _bridges(centroids, normals, component, reach) -> sparse.csr_matrix:
         centroids[others], distance_upper_bound=float(reach[others].max()), workers=-1
     )
     found = distance <= reach[others]
-    step = centroids[main[np.where(found, nearest, 0)]] - centroids[others]
-    step /= np.maximum(np.linalg.norm(step, axis=1), 1e-300)[:, None]
-    for end in (normals[others], normals[main[np.where(found, nearest, 0)]]):
-        found &= np.abs(np.einsum("ij,ij->i", step, end)) <= ON_ONE_SURFACE
+    partner = main[np.where(found, nearest, 0)]
+    cos_a, cos_b = _step_cosines(
+        centroids[partner] - centroids[others], normals[others], normals[partner]
+    )
+    found &= (np.abs(cos_a) <= ON_ONE_SURFACE) & (np.abs(cos_b) <= ON_ONE_SURFACE)
     # The closest pair of each component.
     order = np.lexsort((distance[found], component[others[found]]))
     first = np.ones(order.size, dtype=bool)
