@@ -184,6 +184,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
 
     results = {"machine": machine_info(), "cases": []}
+    args.images.mkdir(parents=True, exist_ok=True)
     started = time.perf_counter()
     for name, cloud in clouds(args.data):
         print(f"{name}: {len(cloud.points):,} points", flush=True)

@@ -8,6 +8,7 @@ from zeroset.prepare import (
     crop,
     drop_outliers,
     group_means,
+    group_viewpoints,
     random_sample,
     reduce_chunks,
     voxel_sample,
@@ -116,6 +117,34 @@ def test_group_means_of_cells_gives_one_mean_and_spread_per_cell(rng):
     np.testing.assert_allclose(label_means[0], labels[in_first].mean(axis=0))
     assert counts[0] == np.count_nonzero(in_first)
     np.testing.assert_allclose(spread[0], np.cov(points[in_first].T, bias=True), atol=1e-12)
+
+
+def test_a_cell_seen_by_two_sensors_faces_both_at_their_range(rng):
+    # A wall in z = 0 seen from (-2, 0, 1) and (2, 0, 1): the mean of the two positions,
+    # (0, 0, 1), lies 1 from the wall where the sensors were 2.2 away. The mean direction
+    # is straight up, and the sensor stands at the range they measured.
+    points = np.c_[rng.uniform(-0.1, 0.1, (200, 2)), np.zeros(200)]
+    sensors = np.where(np.arange(200)[:, None] % 2 == 0, [-2.0, 0.0, 1.0], [2.0, 0.0, 1.0])
+    sensors[:10] = np.nan  # unknown sensors take no part
+    (sensor,) = group_viewpoints(points, sensors, np.zeros(200, dtype=np.int64))
+    centre = points[10:].mean(axis=0)
+    ranges = np.linalg.norm(sensors[10:] - points[10:], axis=1)
+    towards = sensor - centre
+    assert np.linalg.norm(towards) == pytest.approx(ranges.mean(), rel=1e-12)
+    assert towards[2] / np.linalg.norm(towards) > 0.995  # straight up, within 6 degrees
+
+
+def test_a_cell_seen_from_both_sides_has_no_sensor(rng):
+    # Both faces of a sheet thinner than a cell: one group seen from above and from below,
+    # another seen from above only, a third whose sensor is unknown.
+    points = rng.uniform(-0.1, 0.1, (300, 3)) * [1.0, 1.0, 0.01]
+    labels = np.repeat([0, 1, 2], 100)
+    sensors = np.tile([0.0, 0.0, 2.0], (300, 1))
+    sensors[50:100, 2] = -2.0
+    sensors[200:] = np.nan
+    grouped = group_viewpoints(points, sensors, labels)
+    assert np.isnan(grouped[[0, 2]]).all()
+    assert grouped[1, 2] > 1.9 and np.isfinite(grouped[1]).all()
 
 
 @pytest.mark.parametrize("scale", [1.0, 1e17])  # 1e17: cells span more than 2**62 keys

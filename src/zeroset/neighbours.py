@@ -23,6 +23,17 @@ _SPREAD_7 = np.array(
 )
 
 
+def ball_pairs(tree: cKDTree, positions: np.ndarray, radius) -> tuple[np.ndarray, ...]:
+    """Every pair of a position (P, 3) and a point of `tree` within `radius` (one, or (P,))
+    of it: the position's row (M,) and the point's index (M,), grouped by row, and the
+    pairs per row (P,)."""
+    members = tree.query_ball_point(positions, radius, workers=-1, return_sorted=False)
+    counts = np.fromiter((len(m) for m in members), dtype=np.int64, count=len(members))
+    rows = np.repeat(np.arange(len(members)), counts)
+    flat = np.fromiter((i for m in members for i in m), dtype=np.int64, count=int(counts.sum()))
+    return rows, flat, counts
+
+
 def spatial_order(points: np.ndarray) -> np.ndarray:
     """Return a permutation (N,) int64 that puts nearby points next to each other.
 

@@ -13,6 +13,7 @@ from ._validate import as_points, as_viewpoints
 from .config import ReconstructionConfig
 from .contour import marching_cubes, method_of_cubes
 from .density import (
+    BRIDGE_LENGTH,
     BRIDGE_REACH,
     BRIDGE_STEP,
     gap_bridges,
@@ -28,7 +29,14 @@ from .normals import tangent_planes
 from .optimization import OptimizationResult, optimize_mesh
 from .orientation import UNTRUSTED, orient_normals
 from .parameters import estimate_parameters
-from .prepare import cell_labels, crop, drop_outliers, group_means, reduce_chunks
+from .prepare import (
+    cell_labels,
+    crop,
+    drop_outliers,
+    group_means,
+    group_viewpoints,
+    reduce_chunks,
+)
 from .refine import refine_mesh
 from .repair import fill_small_holes, remove_small_components, split_nonmanifold_vertices
 from .rim import trim_to_data
@@ -62,6 +70,11 @@ WIDE_K = 32
 #: Widest hole, over rho+delta, that the rim cut may not open: the signed distance is
 #: defined within rho+delta of the data on either side, so Hoppe's rule closes it too.
 RIM_HOLE_WIDTH = 2.0
+#: Radius of the empty balls that open a hole to its measured points, over the radius of
+#: the point each reaches to (rho+delta where the sampling is even): half the longest gap
+#: bridge, so no gap the bridges may cross is opened, and no hole wider than a bridge may
+#: cross is closed by chords off its centre.
+HOLE_BALL = BRIDGE_LENGTH / 2.0
 #: Largest coordinate magnitude and smallest extent accepted: squared distances between
 #: points then stay far from float64's overflow (1.8e308) and underflow (2.2e-308).
 MAX_COORDINATE = 1e100
@@ -310,10 +323,10 @@ def fit_planes(local, viewpoints, parameters, config, stats, stages) -> FittedPl
     with stages.stage("neighbours"):
         phase1, cell = local, np.arange(local.shape[0])
         if parameters.averaging_cell > 0.0:
-            per_point = () if viewpoints is None or viewpoints.ndim == 1 else (viewpoints,)
             cell = cell_labels(local, parameters.averaging_cell)
-            phase1, _, _, *averaged = group_means(local, cell, *per_point)
-            viewpoints = averaged[0] if averaged else viewpoints
+            phase1 = group_means(local, cell)[0]
+            if viewpoints is not None and viewpoints.ndim == 2:
+                viewpoints = group_viewpoints(local, viewpoints, cell)
         neighbours = knn(phase1, max(config.k_max, WIDE_K))
         noise = parameters.noise
         if viewpoints is not None:
@@ -476,13 +489,15 @@ def warn_surface_changes(stats: dict, config: ReconstructionConfig) -> None:
 
 def data_support(fitted: FittedPlanes, bridges: np.ndarray, parameters: Parameters):
     """Where the data are: the points (N + B, 3) of `fitted` and the gap `bridges`, each
-    one's radius (N + B,), and how far (N + B,) the surface reaches from it: a point's
-    radius, and for a bridge point the step between bridge points, so that a chord covers
-    a strip along itself and not the middle of a round hole off its end."""
+    one's radius (N + B,), how far (N + B,) the surface reaches from it, and whether it was
+    measured (N + B,), not bridged. The reach is a point's radius, and for a bridge point
+    the step between bridge points, so that a chord covers a strip along itself and not
+    the middle of a round hole off its end."""
     n_bridges = bridges.shape[0]
     radii = np.r_[fitted.radii, np.full(n_bridges, BRIDGE_REACH * parameters.rho_delta)]
     reach = np.r_[fitted.radii, np.full(n_bridges, BRIDGE_STEP * parameters.rho_delta)]
-    return np.concatenate([fitted.points, bridges]), radii, reach
+    measured = np.r_[np.ones(fitted.points.shape[0], bool), np.zeros(n_bridges, bool)]
+    return np.concatenate([fitted.points, bridges]), radii, reach, measured
 
 
 def repair(mesh: Mesh, parameters, config, stats) -> Mesh:
@@ -503,11 +518,18 @@ def repair(mesh: Mesh, parameters, config, stats) -> Mesh:
     return mesh
 
 
-def trim_rim(mesh: Mesh, points, radii, reach, parameters, config, stats) -> Mesh:
-    """Stage "rim": cut the boundaries back to the edge of the data (`data_support`);
-    counts to `stats`."""
+def trim_rim(mesh: Mesh, points, radii, reach, measured, parameters, config, stats) -> Mesh:
+    """Stage "rim": cut the boundaries back to the edge of the data (`data_support`), and
+    open every hole wider than the longest gap bridge to its measured points
+    (``HOLE_BALL``); counts to `stats`."""
     mesh, counts = trim_to_data(
-        mesh, points, radii, cube_size=parameters.cube_size, reach=reach
+        mesh,
+        points,
+        radii,
+        cube_size=parameters.cube_size,
+        reach=reach,
+        measured=measured,
+        hole=HOLE_BALL,
     )
     stats.update(counts)
     # An end moved onto the cut can join two stretches of rim at one vertex: split it.

@@ -21,6 +21,7 @@ __all__ = [
     "Reduction",
     "cell_labels",
     "group_means",
+    "group_viewpoints",
     "crop",
     "drop_outliers",
     "random_sample",
@@ -29,6 +30,9 @@ __all__ = [
 ]
 
 
+#: Shortest mean of a group's unit directions to its sensors for the group to have one: a
+#: group seen from opposite sides (both faces of a thin sheet in one cell) has none.
+SPLIT_VIEW = 0.25
 #: Points per chunk when a cloud is reduced while it is read.
 CHUNK_POINTS = 4_000_000
 
@@ -383,3 +387,40 @@ def drop_outliers(neighbours: Neighbourhoods, radius, min_neighbours: int) -> np
     others = neighbours.distances[:, 1:]
     radius = np.asarray(radius, dtype=np.float64).reshape(-1, 1)
     return np.count_nonzero(others <= radius, axis=1) >= min_neighbours
+
+
+def group_viewpoints(points: np.ndarray, viewpoints: np.ndarray, labels: np.ndarray) -> np.ndarray:
+    """One sensor (M, 3) for each group of points: at the group's mean range from its mean
+    point, along the mean of its points' unit directions to their sensors.
+
+    The mean of the sensors' positions can lie anywhere between them: two sensors on either
+    side of a wall put it in the wall, at a range that neither measured. The mean direction
+    faces where the sensors looked from, and the mean range is the one the range noise grows
+    with. A group whose mean direction is shorter than ``SPLIT_VIEW`` (seen from opposite
+    sides) or none of whose sensors is known gets a row of NaN: its normals follow the tree.
+
+    Parameters
+    ----------
+    points : (N, 3) float64
+    viewpoints : (N, 3) float64
+        Each point's sensor; a row of NaN where it is not known.
+    labels : (N,) int64
+        Group of every point, 0 .. M-1 with every number used (`cell_labels`).
+    """
+    towards = viewpoints - points
+    ranges = np.linalg.norm(towards, axis=1)
+    known = np.isfinite(ranges) & (ranges > 0.0)
+    directions = np.where(known[:, None], towards / np.where(known, ranges, 1.0)[:, None], 0.0)
+    count = np.bincount(labels, weights=known.astype(np.float64))
+    seen = np.maximum(count, 1.0)
+
+    def mean(values):
+        return np.bincount(labels, weights=values) / seen
+
+    direction = np.stack([mean(directions[:, d]) for d in range(3)], axis=1)
+    length = np.linalg.norm(direction, axis=1)
+    centre = np.stack([mean(np.where(known, points[:, d], 0.0)) for d in range(3)], axis=1)
+    reach = mean(np.where(known, ranges, 0.0))
+    sensors = centre + direction * (reach / np.maximum(length, 1e-300))[:, None]
+    sensors[(count == 0) | (length < SPLIT_VIEW)] = np.nan
+    return sensors

@@ -10,13 +10,21 @@ evenly sampled data, by less inside and by more outside (Adamson & Alexa 2004 bo
 point-set surfaces the same way). The mesh is cut along the line where that offset
 crosses ``4 R / (3 pi)``, each cut point interpolated along its edge, so the rim follows
 the edge of the data within a fraction of the spacing, without steps.
+
+The centroid test assumes a straight edge: around a round hole the data fill more than
+half of the disc at the hole's edge, and the rim comes out inside the hole. A hole wider
+than the gaps the bridges may cross has room for an empty ball (one with no measured point
+inside) of half the longest bridge, and every vertex within such a ball is outside: the
+union of these balls reaches the hole's last points, whatever its shape (an alpha shape,
+Edelsbrunner & Mücke 1994), and chords that cross the hole off its centre are cut away
+with it.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from .neighbours import build_tree
+from .neighbours import ball_pairs, build_tree
 from .topology import (
     boundary_edges,
     face_area_vectors,
@@ -26,7 +34,14 @@ from .topology import (
 )
 from .types import Mesh
 
-__all__ = ["EDGE_OFFSET", "cut_mesh", "data_edge", "trim_to_data"]
+__all__ = [
+    "EDGE_OFFSET",
+    "cut_mesh",
+    "data_edge",
+    "empty_ball_depth",
+    "empty_balls",
+    "trim_to_data",
+]
 
 #: Tangential offset of the centroid of a half disc of radius 1 from its centre.
 EDGE_OFFSET = 4.0 / (3.0 * np.pi)
@@ -43,8 +58,16 @@ BAND = 2.5
 #: Vertices farther than this many radii from the nearest point are tested too: a hole
 #: in the data that the lattice closed.
 FAR = 0.5
-#: Steps of regula falsi that place each crossing on its edge.
-CROSSING_STEPS = 2
+#: Steps of regula falsi (Illinois) that place each crossing on its edge.
+CROSSING_STEPS = 4
+#: How far, over the smallest empty ball's radius, a centre may climb the distance to the
+#: points, in how many steps; and the largest ball, over the smallest.
+CLIMB = 0.5
+CLIMB_STEPS = 8
+#: Points within this many radii of an empty ball count around it, and the widest angle
+#: between two of them about its centre for the ball to be a hole.
+ENCLOSE = 1.25
+OPEN_ANGLE = np.pi / 2
 #: A cut this close to an end of its edge, over the edge's length, moves that end.
 SNAP = 0.2
 
@@ -78,10 +101,7 @@ def data_edge(points, radii, vertices, normals, *, reach=None, tree=None) -> np.
     reach = radii if reach is None else reach
     gap, nearest = tree.query(vertices, workers=-1)
     radius = DISC * radii[nearest]
-    members = tree.query_ball_point(vertices, radius, workers=-1, return_sorted=False)
-    counts = np.fromiter((len(m) for m in members), dtype=np.int64, count=len(members))
-    rows = np.repeat(np.arange(vertices.shape[0]), counts)
-    flat = np.fromiter((i for m in members for i in m), dtype=np.int64, count=int(counts.sum()))
+    rows, flat, counts = ball_pairs(tree, vertices, radius)
     inside = np.maximum(counts, 1)[:, None]
     centroid = np.zeros_like(vertices)
     np.add.at(centroid, rows, points[flat])
@@ -99,6 +119,92 @@ def data_edge(points, radii, vertices, normals, *, reach=None, tree=None) -> np.
     # Beyond the reach of the nearest point, the surface is not defined at all.
     value = np.maximum(value, gap / reach[nearest] - 1.0)
     return np.where(counts >= MIN_POINTS, value, 1.0)
+
+
+def empty_balls(mesh: Mesh, normals, tree, least) -> tuple[np.ndarray, np.ndarray]:
+    """Centres (C, 3) and radii (C,) of the balls centred on `mesh` that hold no point of
+    `tree` (a k-d tree over the points), each reaching to its nearest point and at least
+    as large as that point's `least` (N,), data units.
+
+    Every vertex so far from the points is a centre. So is every vertex within ``CLIMB``
+    of that after it climbs the distance to the points: it steps along its tangent plane
+    (`normals` (V, 3), unit) away from its nearest point, halving the step where the
+    distance does not grow, at most ``CLIMB`` times the `least` of its first nearest point
+    in all. A centre inside a round hole so reaches the hole's middle, whose ball reaches
+    all round to its last points, however coarse the mesh there. Only the balls that the
+    points surround are kept (`_enclosed`): the rim test already places open ends, and the
+    space between two sparse scan lines is no hole."""
+    least = np.asarray(least, dtype=np.float64)
+    gap, nearest = tree.query(mesh.vertices, workers=-1)
+    start = np.flatnonzero(gap >= (1.0 - CLIMB) * least[nearest])
+    centre, normal = mesh.vertices[start], normals[start]
+    depth, near = gap[start], nearest[start]
+    reach = CLIMB * least[near]
+    step, travel = 0.5 * reach, np.zeros(start.size)
+    for _ in range(CLIMB_STEPS):
+        away = centre - tree.data[near]
+        away -= np.einsum("ij,ij->i", away, normal)[:, None] * normal
+        away /= np.maximum(np.linalg.norm(away, axis=1), 1e-300)[:, None]
+        step = np.minimum(step, reach - travel)
+        trial = centre + step[:, None] * away
+        trial_depth, trial_near = tree.query(trial, workers=-1)
+        better = trial_depth > depth
+        centre[better], depth[better] = trial[better], trial_depth[better]
+        near[better] = trial_near[better]
+        travel[better] += step[better]
+        step[~better] *= 0.5
+    centres = np.concatenate([mesh.vertices, centre])
+    radii = np.concatenate([gap, depth])
+    normal = np.concatenate([normals, normal])
+    empty = np.flatnonzero(radii >= least[np.concatenate([nearest, near])])
+    enclosed = _enclosed(centres[empty], radii[empty], normal[empty], tree)
+    return centres[empty[enclosed]], radii[empty[enclosed]]
+
+
+def _enclosed(centres, radii, normals, tree) -> np.ndarray:
+    """Whether (C,) the points within ``ENCLOSE`` radii of each empty ball surround it: no
+    angle between two of them, about the ball's centre in its tangent plane (`normals`
+    (C, 3)), is wider than ``OPEN_ANGLE``. A hole is surrounded by its data; the space past
+    an open end, or between two scan lines, is not."""
+    if centres.shape[0] == 0:
+        return np.zeros(0, dtype=bool)
+    rows, flat, counts = ball_pairs(tree, centres, ENCLOSE * radii)
+    axis = np.eye(3)[np.argmin(np.abs(normals), axis=1)]
+    u = np.cross(normals, axis)
+    u /= np.linalg.norm(u, axis=1)[:, None]
+    v = np.cross(normals, u)
+    offset = tree.data[flat] - centres[rows]
+    angle = np.arctan2(
+        np.einsum("ij,ij->i", offset, v[rows]), np.einsum("ij,ij->i", offset, u[rows])
+    )
+    order = np.lexsort((angle, rows))
+    rows, angle = rows[order], angle[order]
+    gap = np.zeros(centres.shape[0])
+    inner = rows[1:] == rows[:-1]
+    np.maximum.at(gap, rows[1:][inner], np.diff(angle)[inner])
+    has = counts > 0
+    first, last = np.cumsum(counts) - counts, np.cumsum(counts) - 1
+    wrap = np.full(centres.shape[0], 2.0 * np.pi)
+    wrap[has] = angle[first[has]] + 2.0 * np.pi - angle[last[has]]
+    gap = np.maximum(gap, wrap)
+    return gap <= OPEN_ANGLE
+
+
+def empty_ball_depth(positions, centres, radii, tree=None) -> np.ndarray:
+    """How deep (P,) each position lies in the union of the balls (C,) of `centres` (C, 3)
+    and `radii` (C,): the largest ``radius - distance to the centre``, data units; negative
+    or -inf outside every ball.
+
+    `tree` is a k-d tree over `centres`, to reuse one already built."""
+    positions = np.asarray(positions, dtype=np.float64)
+    depth = np.full(positions.shape[0], -np.inf)
+    if centres.shape[0] == 0:
+        return depth
+    tree = build_tree(centres) if tree is None else tree
+    rows, flat, _ = ball_pairs(tree, positions, radii.max())
+    inside = radii[flat] - np.linalg.norm(positions[rows] - centres[flat], axis=1)
+    np.maximum.at(depth, rows, inside)
+    return depth
 
 
 def cut_mesh(mesh: Mesh, value: np.ndarray, *, locate=None) -> tuple[Mesh, int]:
@@ -186,15 +292,18 @@ def cut_mesh(mesh: Mesh, value: np.ndarray, *, locate=None) -> tuple[Mesh, int]:
 
 
 def trim_to_data(
-    mesh: Mesh, points, radii, *, cube_size: float, reach=None
+    mesh: Mesh, points, radii, *, cube_size: float, reach=None, measured=None, hole=None
 ) -> tuple[Mesh, dict]:
     """Cut the mesh back to the edge of the data around its boundaries.
 
     Vertices within ``BAND`` largest radii plus one cube of a boundary vertex are tested
     (`data_edge`), and so are vertices farther than ``FAR`` radii from the nearest point
-    (a hole the lattice closed); the others lie where the data surround them. The cut
-    crosses each edge where the test, not its linear interpolation, is zero
-    (``CROSSING_STEPS`` of regula falsi).
+    (a hole the lattice closed); the others lie where the data surround them. With `hole`,
+    every vertex at least `hole` radii from the nearest `measured` point is the centre of
+    an empty ball reaching to that point (`empty_balls`), and the vertices within such a
+    ball are tested and outside (`empty_ball_depth`, in disc radii). The cut crosses each
+    edge where the test, not its linear interpolation, is zero (``CROSSING_STEPS`` of
+    regula falsi).
 
     Parameters
     ----------
@@ -206,13 +315,18 @@ def trim_to_data(
         The lattice's cube, data units.
     reach : (N,) float64, optional
         How far from each point the surface may reach (`data_edge`); `radii` by default.
+    measured : (N,) bool, optional
+        The points that were measured (not gap bridges); all by default.
+    hole : float, optional
+        Radius of the smallest empty ball that opens a hole, over the radius of the point
+        it reaches to; none by default.
 
     Returns
     -------
     mesh : Mesh
     counts : dict
-        ``rim_vertices_tested``, ``rim_faces_removed`` (faces wholly outside) and
-        ``rim_edges_cut``.
+        ``rim_vertices_tested``, ``rim_faces_removed`` (faces wholly outside),
+        ``rim_edges_cut`` and ``rim_hole_vertices`` (vertices in an empty ball).
     """
     tree = build_tree(points)
     gap, nearest = tree.query(mesh.vertices, workers=-1)
@@ -223,27 +337,45 @@ def trim_to_data(
             mesh.vertices, distance_upper_bound=BAND * radii.max() + cube_size, workers=-1
         )
         tested |= np.isfinite(distance)
-    near = np.flatnonzero(tested)
     normals = vertex_normals(mesh)
+    centres, depths = np.zeros((0, 3)), np.zeros(0)
+    if hole is not None:
+        solid = np.ones(points.shape[0], bool) if measured is None else measured
+        centres, depths = empty_balls(mesh, normals, build_tree(points[solid]), hole * radii[solid])
+    balls, hollow = None, np.zeros(0, dtype=np.int64)
+    if centres.shape[0]:
+        balls = build_tree(centres)
+        hollow = np.unique(ball_pairs(build_tree(mesh.vertices), centres, depths)[1])
+        tested[hollow] = True
+    near = np.flatnonzero(tested)
+
+    def test(positions, normals):
+        value = data_edge(points, radii, positions, normals, reach=reach, tree=tree)
+        depth = empty_ball_depth(positions, centres, depths, tree=balls)
+        return np.maximum(value, depth / (DISC * radii[tree.query(positions)[1]]))
+
     value = np.full(mesh.n_vertices, -1.0)
-    value[near] = data_edge(
-        points, radii, mesh.vertices[near], normals[near], reach=reach, tree=tree
-    )
+    value[near] = test(mesh.vertices[near], normals[near])
     outside = (value[mesh.faces] >= 0.0).all(axis=1)
 
     def locate(inner, outer, t):
-        # Regula falsi on the edge test along each crossed edge, from the linear guess.
+        # Regula falsi on the edge test along each crossed edge, from the linear guess;
+        # the Illinois rule halves the value kept at an end that two steps did not move.
         lo, hi, f_lo, f_hi = np.zeros_like(t), np.ones_like(t), value[inner], value[outer]
+        side = np.zeros(t.shape, dtype=np.int8)
         for _ in range(CROSSING_STEPS):
             position = mesh.vertices[inner] + t[:, None] * (
                 mesh.vertices[outer] - mesh.vertices[inner]
             )
             normal = (1.0 - t)[:, None] * normals[inner] + t[:, None] * normals[outer]
             normal /= np.maximum(np.linalg.norm(normal, axis=1), 1e-300)[:, None]
-            f = data_edge(points, radii, position, normal, reach=reach, tree=tree)
+            f = test(position, normal)
             below = f < 0.0
+            f_hi = np.where(below & (side < 0), 0.5 * f_hi, f_hi)
+            f_lo = np.where(~below & (side > 0), 0.5 * f_lo, f_lo)
             lo, f_lo = np.where(below, t, lo), np.where(below, f, f_lo)
             hi, f_hi = np.where(below, hi, t), np.where(below, f_hi, f)
+            side = np.where(below, -1, 1).astype(np.int8)
             t = lo + (hi - lo) * f_lo / (f_lo - f_hi)
         return t
 
@@ -252,4 +384,5 @@ def trim_to_data(
         "rim_vertices_tested": int(near.size),
         "rim_faces_removed": int(np.count_nonzero(outside)),
         "rim_edges_cut": cut,
+        "rim_hole_vertices": int(hollow.size),
     }

@@ -249,6 +249,7 @@ def reconstruct_tiled(
             np.concatenate([p["points"] for p in pieces]),
             np.concatenate([p["radii"] for p in pieces]),
             np.concatenate([p["reach"] for p in pieces]),
+            np.concatenate([p["measured"] for p in pieces]),
             parameters,
             config,
             stats,
@@ -553,6 +554,7 @@ def _contour_tile(
         "points": np.zeros((0, 3)),
         "radii": np.zeros(0),
         "reach": np.zeros(0),
+        "measured": np.zeros(0, bool),
         "stats": {},
         "peak_mib": peak,
         "worker": worker,
@@ -578,7 +580,7 @@ def _contour_tile(
     edge_keys, vertices, faces, cube_keys = keyed_marching_cubes(field_, owned=fit["tile"].owned)
     for key in ("jets", "fit_support", "fit_notes"):  # the client counts the jets owned
         stats.pop(key, None)
-    support, radii, reach = data_support(fitted, bridges, parameters)
+    support, radii, reach, measured = data_support(fitted, bridges, parameters)
     lo, hi = fit["tile"].owned
     owned = _in_cubes(support, lo, hi, parameters.cube_size)
     if jets is not None:
@@ -593,6 +595,7 @@ def _contour_tile(
         "points": support[owned],
         "radii": radii[owned],
         "reach": reach[owned],
+        "measured": measured[owned],
         "stats": stats,
         "peak_mib": peak,
         "jets": jets,
