@@ -6,7 +6,7 @@ from scipy.spatial import cKDTree
 
 from zeroset import ReconstructionConfig, reconstruct, topology
 from zeroset.evaluate import mesh_quality, points_to_mesh_distance
-from zeroset.repair import fill_small_holes
+from zeroset.repair import WIDTH_EDGES, fill_small_holes
 from zeroset.rim import EDGE_OFFSET, SNAP, cut_mesh, data_edge, empty_balls
 from zeroset.synthetic import sample_cylinder, scan_pipe
 from zeroset.types import Mesh
@@ -207,7 +207,7 @@ def test_holes_narrower_than_the_limit_are_closed(width, filled):
     holed = Mesh(vertices=mesh.vertices, faces=mesh.faces[keep])
     loops = topology.boundary_loops(holed.faces)
     assert len(loops) == 2 and max(len(loop) for loop in loops) > 6
-    closed, count, widest = fill_small_holes(holed, 6, max_width=width)
+    closed, count, widest = fill_small_holes(holed, WIDTH_EDGES, max_width=width)
     assert count == filled
     assert (0.25 < widest < 0.4) if filled else widest == 0.0  # the hole is 0.3 across
     assert len(topology.boundary_loops(closed.faces)) == 2 - filled

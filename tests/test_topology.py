@@ -60,6 +60,9 @@ def test_small_hole_is_filled_and_large_one_kept():
     )
     kept, count, widest = fill_small_holes(mesh, max_edges=3)
     assert count == 0 and kept.n_faces == mesh.n_faces and widest == 0.0
+    # Four edges, but wider than the data resolve: open.
+    kept, count, widest = fill_small_holes(mesh, max_edges=4, max_width=1.4)
+    assert count == 0 and kept.n_faces == mesh.n_faces and widest == 0.0
 
 
 def test_bowtie_vertex_is_split():

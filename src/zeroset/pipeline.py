@@ -38,7 +38,12 @@ from .prepare import (
     reduce_chunks,
 )
 from .refine import refine_mesh
-from .repair import fill_small_holes, remove_small_components, split_nonmanifold_vertices
+from .repair import (
+    WIDTH_EDGES,
+    fill_small_holes,
+    remove_small_components,
+    split_nonmanifold_vertices,
+)
 from .rim import trim_to_data
 from .types import DistanceField, Jets, Mesh, Orientation, Parameters, TangentPlanes
 
@@ -67,9 +72,10 @@ OPTIMIZE_STAGE = "optimize"
 BRIDGES_NOTED = 0.02
 #: Nearest neighbours found per point: enough to reach across the gap between scan lines.
 WIDE_K = 32
-#: Widest hole, over rho+delta, that the rim cut may not open: the signed distance is
-#: defined within rho+delta of the data on either side, so Hoppe's rule closes it too.
-RIM_HOLE_WIDTH = 2.0
+#: Widest hole closed, over rho+delta, after contouring and after the rim cut: the signed
+#: distance is defined within rho+delta of the data on either side, so the data cannot
+#: resolve a narrower one.
+HOLE_WIDTH = 2.0
 #: Radius of the empty balls that open a hole to its measured points, over the radius of
 #: the point each reaches to (rho+delta where the sampling is even): half the longest gap
 #: bridge, so no gap the bridges may cross is opened, and no hole wider than a bridge may
@@ -504,7 +510,7 @@ def repair(mesh: Mesh, parameters, config, stats) -> Mesh:
     """Split bow-tie vertices, close small holes, drop tiny components; counts to `stats`."""
     mesh, stats["bowtie_vertices_split"] = split_nonmanifold_vertices(mesh)
     mesh, stats["small_holes_filled"], stats["widest_hole_filled"] = fill_small_holes(
-        mesh, config.max_hole_edges
+        mesh, config.max_hole_edges, max_width=HOLE_WIDTH * parameters.rho_delta
     )
     mesh, stats["small_components_dropped"] = remove_small_components(
         mesh, config.min_component_faces
@@ -537,7 +543,7 @@ def trim_rim(mesh: Mesh, points, radii, reach, measured, parameters, config, sta
     stats["bowtie_vertices_split"] += split
     if config.max_hole_edges > 0:  # holes Hoppe's rule could not resolve either stay shut
         mesh, filled, widest = fill_small_holes(
-            mesh, config.max_hole_edges, max_width=RIM_HOLE_WIDTH * parameters.rho_delta
+            mesh, WIDTH_EDGES, max_width=HOLE_WIDTH * parameters.rho_delta
         )
         stats["small_holes_filled"] += filled
         stats["widest_hole_filled"] = max(stats["widest_hole_filled"], widest)

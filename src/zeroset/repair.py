@@ -60,7 +60,7 @@ def split_nonmanifold_vertices(mesh: Mesh) -> tuple[Mesh, int]:
     return Mesh(vertices=vertices, faces=new_faces), int(added)
 
 
-#: Longest loop whose width is measured (pairwise distances); longer loops are not small.
+#: Most edges of a loop that the rim cut may close (`zeroset.pipeline.trim_rim`).
 WIDTH_EDGES = 64
 
 
@@ -73,12 +73,13 @@ def _width(mesh: Mesh, loop: np.ndarray) -> float:
 def fill_small_holes(
     mesh: Mesh, max_edges: int, *, max_width: float | None = None
 ) -> tuple[Mesh, int, float]:
-    """Close boundary loops of at most `max_edges` edges, or at most `max_width` across,
+    """Close boundary loops of at most `max_edges` edges and at most `max_width` across
     with a fan of triangles.
 
-    A gap of a few edges is a cube that contouring skipped, not a hole in the object:
-    a hole narrower than rho+delta cannot be resolved from the data (thesis 3.2.1, 3.4.6).
-    The width of a loop is the largest distance between two of its vertices.
+    A hole narrower than the data can resolve is a cube that contouring skipped, not a hole
+    in the object: where the signed distance is defined within rho+delta of the data on
+    either side, a hole up to 2 rho+delta across is closed by Hoppe's rule (thesis 3.2.1,
+    3.4.6). The width of a loop is the largest distance between two of its vertices.
     The fan's apex is chosen so that no new edge duplicates an existing one; a loop with
     no such apex is left open. The mesh must be vertex-manifold.
 
@@ -95,10 +96,10 @@ def fill_small_holes(
     new_faces = []
     filled, widest = 0, 0.0
     for loop in boundary_loops(mesh.faces):
-        if len(loop) > max(max_edges, WIDTH_EDGES if max_width is not None else 0):
-            continue  # too long for either rule
+        if len(loop) > max_edges:
+            continue
         width = _width(mesh, loop)
-        if len(loop) > max_edges and not width <= max_width:
+        if max_width is not None and not width <= max_width:
             continue
         loop = loop.tolist()
         for shift in range(len(loop)):
