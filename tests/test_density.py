@@ -51,6 +51,9 @@ def test_gaps_between_bands_are_bridged_and_the_field_is_defined_across_them(rng
     points = _banded(rng)
     rho_delta = 0.015
     bridges = gap_bridges(points, _sectors(points), rho_delta=rho_delta)
+    up = np.tile([0.0, 0.0, 1.0], (points.shape[0], 1))
+    along = gap_bridges(points, _sectors(points), rho_delta=rho_delta, normals=up)
+    np.testing.assert_array_equal(along, bridges)  # every chord lies in the plane
     assert not np.any((points[:, 1] + 0.005) % 0.05 > 0.018)  # no data point in a gap
     middle = np.abs(bridges[:, 1] % 0.05 - 0.03) < 0.005
     inside = (bridges[:, 0] > 0.05) & (bridges[:, 0] < 0.45) & (bridges[:, 1] < 0.45)
@@ -77,6 +80,27 @@ def test_gaps_between_bands_are_bridged_and_the_field_is_defined_across_them(rng
         on_plane = gap_middle & (np.abs(z) < 0.011)
         assert on_plane.sum() > 50
         assert np.all(np.isfinite(field.values[on_plane]) == expect_defined)
+
+
+def test_no_bridge_joins_a_floor_to_a_wall_across_a_gap(rng):
+    # A floor (z = 0) that stops 40 mm short of a wall (x = 0.34): the chords from the
+    # floor's edge to the wall are shorter than a bridge's limit, but run across the wall.
+    floor = _grid(np.arange(0.0, 0.3, 0.005), np.arange(0.0, 0.5, 0.005), rng, noise=0.0005)
+    z, y = np.meshgrid(np.arange(-0.1, 0.2, 0.005), np.arange(0.0, 0.5, 0.005))
+    wall = np.c_[np.full(z.size, 0.34), y.ravel(), z.ravel()]
+    points = np.concatenate([floor, wall])
+    normals = np.concatenate(
+        [
+            np.tile([0.0, 0.0, 1.0], (floor.shape[0], 1)),
+            np.tile([1.0, 0.0, 0.0], (wall.shape[0], 1)),
+        ]
+    )
+    corner = (points[:, 0] > 0.3) & (points[:, 0] < 0.335)  # between the floor and the wall
+    blind = gap_bridges(points, _sectors(points), rho_delta=0.015)
+    assert np.count_nonzero((blind[:, 0] > 0.3) & (blind[:, 0] < 0.335)) > 50
+    assert not corner.any()
+    bridges = gap_bridges(points, _sectors(points), rho_delta=0.015, normals=normals)
+    assert not np.any((bridges[:, 0] > 0.3) & (bridges[:, 0] < 0.335))
 
 
 def test_round_holes_and_open_ends_get_no_bridge_across(rng):

@@ -50,6 +50,10 @@ EDGE_K = 256
 #: neighbours (within about 30 degrees): chords across a gap leave that way, chords
 #: along an open end, or across a round hole off its centre, do not.
 CROSSING = 0.85
+#: Largest |cosine| between a gap bridge's chord and the normal at either end: the chord
+#: lies within 60 degrees of both tangent planes. Within 30 degrees (0.5) the noisy normals
+#: of the SICK scans lose bridges they need (mean distance 50.9 -> 64.1 mm on scan 0).
+ALONG = float(np.cos(np.radians(30.0)))
 
 
 def sector_distances(points, indices, distances) -> tuple[np.ndarray, np.ndarray]:
@@ -139,7 +143,7 @@ def point_radii(sectors, neighbours, *, rho_delta: float, margin) -> np.ndarray:
     return np.where(radii <= RADIUS_CAP * rho_delta, np.maximum(radii, rho_delta), rho_delta)
 
 
-def gap_bridges(points, sectors, *, rho_delta: float, tree=None) -> np.ndarray:
+def gap_bridges(points, sectors, *, rho_delta: float, tree=None, normals=None) -> np.ndarray:
     """Points (B, 3) along the chords that cross narrow gaps in the sampling.
 
     A scan's sampling can leave gaps wider than the cloud's radius between well-sampled
@@ -152,7 +156,9 @@ def gap_bridges(points, sectors, *, rho_delta: float, tree=None) -> np.ndarray:
     limit cross, so holes wider than about ``BRIDGE_LENGTH rho_delta`` stay open, as do
     open ends (nothing lies beyond). A chord must leave its first point on the side away
     from that point's neighbours (cosine at least ``CROSSING``): it crosses the gap, and
-    does not run along the edge of an open end.
+    does not run along the edge of an open end. With `normals`, a chord must also lie
+    within ``ALONG`` of both its ends' tangent planes: one across the gap between two
+    sheets (two plates, a pipe inside a pipe) runs along neither.
 
     Parameters
     ----------
@@ -163,6 +169,8 @@ def gap_bridges(points, sectors, *, rho_delta: float, tree=None) -> np.ndarray:
     rho_delta : float
     tree : cKDTree, optional
         A tree over `points`, to reuse one already built.
+    normals : (N, 3) float64, optional
+        Unit normals of `points`, either sign.
     """
     edge = np.flatnonzero(~np.isfinite(sectors).all(axis=1))
     if edge.size == 0:
@@ -178,7 +186,8 @@ def gap_bridges(points, sectors, *, rho_delta: float, tree=None) -> np.ndarray:
     gap = np.isfinite(length) & (length > rho_delta)
     rows, direction = np.nonzero(gap)
     start = points[edge[rows]]
-    end = points[indices[rows, column[rows, direction]]]
+    partner = indices[rows, column[rows, direction]]
+    end = points[partner]
     # The side of each edge point away from its neighbours within rho_delta: a chord
     # across a gap leaves that way; one along the edge of the data does not.
     close = distances <= rho_delta
@@ -188,6 +197,10 @@ def gap_bridges(points, sectors, *, rho_delta: float, tree=None) -> np.ndarray:
     leaves = np.einsum("ij,ij->i", chord, away[rows]) >= CROSSING * np.linalg.norm(
         chord, axis=1
     ) * np.linalg.norm(away[rows], axis=1)
+    if normals is not None:
+        reach = ALONG * np.linalg.norm(chord, axis=1)
+        leaves &= np.abs(np.einsum("ij,ij->i", chord, normals[edge[rows]])) <= reach
+        leaves &= np.abs(np.einsum("ij,ij->i", chord, normals[partner])) <= reach
     rows, direction, start, end = rows[leaves], direction[leaves], start[leaves], end[leaves]
     # Each chord is cut into `steps` pieces; its steps - 1 inner cut points are bridges.
     steps = np.ceil(length[rows, direction] / (BRIDGE_STEP * rho_delta)).astype(np.int64)

@@ -425,7 +425,9 @@ def distance_field(
     back to that edge (`trim_rim`)."""
     with stages.stage("signed distance"):
         bridges = (
-            gap_bridges(fitted.points, fitted.sectors, rho_delta=parameters.rho_delta)
+            gap_bridges(
+                fitted.points, fitted.sectors, rho_delta=parameters.rho_delta, normals=normals
+            )
             if config.gap_bridges
             else np.zeros((0, 3))
         )
