@@ -6,7 +6,7 @@ from scipy.spatial import cKDTree
 
 from zeroset import ReconstructionConfig, reconstruct, topology
 from zeroset.evaluate import mesh_quality, points_to_mesh_distance
-from zeroset.repair import WIDTH_EDGES, fill_small_holes
+from zeroset.repair import WIDTH_EDGES, fill_small_holes, split_nonmanifold_vertices
 from zeroset.rim import EDGE_OFFSET, SNAP, cut_mesh, data_edge, empty_balls
 from zeroset.synthetic import sample_cylinder, scan_pipe
 from zeroset.types import Mesh
@@ -147,6 +147,18 @@ def test_hole_in_a_pipe_wall_stays_round_and_near_its_edge():
     assert hole.max() <= hole_radius + spacing
     gap, _ = cKDTree(sample.points).query(rim)
     assert gap.max() <= 2.5 * spacing
+
+
+def test_cut_does_not_pinch_two_pieces_into_one_vertex():
+    # A saddle, turned: the data lie in two opposite quadrants that meet at the centre.
+    # Moving the vertex next to the centre onto both cuts would join the two at it.
+    mesh = _plane_mesh(10)
+    x, y = (mesh.vertices[:, :2] - 0.5).T
+    u, v = np.cos(0.3) * x + np.sin(0.3) * y, np.cos(0.3) * y - np.sin(0.3) * x
+    cut, _ = cut_mesh(mesh, 0.0005 - u * v)
+    assert split_nonmanifold_vertices(cut)[1] == 0
+    assert topology.is_edge_manifold(cut.faces)
+    assert topology.is_consistently_oriented(cut.faces)
 
 
 @pytest.mark.parametrize("gap", ["hole", "edge", "strip"])

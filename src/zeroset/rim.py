@@ -27,6 +27,8 @@ import numpy as np
 from .neighbours import ball_pairs, build_tree
 from .topology import (
     boundary_edges,
+    corner_fans,
+    edge_ids,
     face_area_vectors,
     undirected_edges,
     undo_turned_faces,
@@ -215,8 +217,9 @@ def cut_mesh(mesh: Mesh, value: np.ndarray, *, locate=None) -> tuple[Mesh, int]:
     puts the crossing. Where that lies within ``SNAP`` of the edge's length from one end,
     the end moves onto the crossing instead (as isosurface stuffing warps its lattice,
     Labelle & Shewchuk 2007), so no sliver is made, unless the move would turn a triangle
-    over. Every other crossed edge gets one new vertex, shared by the faces on both
-    sides. Orientation is kept, and faces wholly outside go.
+    over or pinch two stretches of rim into one vertex. Every other crossed edge gets one
+    new vertex, shared by the faces on both sides. Orientation is kept, and faces wholly
+    outside go.
 
     Parameters
     ----------
@@ -234,8 +237,7 @@ def cut_mesh(mesh: Mesh, value: np.ndarray, *, locate=None) -> tuple[Mesh, int]:
     cut : int
         Edges crossed.
     """
-    faces, vertices, value = mesh.faces, mesh.vertices.copy(), value.copy()
-    edges, corner_edge, _ = undirected_edges(faces)
+    edges, corner_edge, _ = undirected_edges(mesh.faces)
     # Orient each crossed edge from its inner end a to its outer end b.
     a, b = edges[:, 0], edges[:, 1]
     flip = value[a] >= 0.0
@@ -245,19 +247,39 @@ def cut_mesh(mesh: Mesh, value: np.ndarray, *, locate=None) -> tuple[Mesh, int]:
     t[crossed] = value[a[crossed]] / (value[a[crossed]] - value[b[crossed]])
     if locate is not None and crossed.any():
         t[crossed] = np.clip(locate(a[crossed], b[crossed], t[crossed]), 0.0, 1.0)
+    # An end moved onto the cut can pinch two stretches of rim into one vertex (a bow
+    # tie): such ends stay, and their edges are cut instead.
+    pinned = np.zeros(mesh.n_vertices, dtype=bool)
+    vertices, kept, moved = _cut_faces(mesh, value, edges, corner_edge, a, b, t, pinned)
+    pinch = moved & _bow_ties(kept, vertices.shape[0])[: mesh.n_vertices]
+    if pinch.any():
+        vertices, kept, _ = _cut_faces(mesh, value, edges, corner_edge, a, b, t, pinch)
+    used, inverse = np.unique(kept, return_inverse=True)
+    mesh = Mesh(vertices=vertices[used], faces=inverse.reshape(-1, 3).astype(np.int64))
+    return mesh, int(np.count_nonzero(crossed))
+
+
+def _cut_faces(mesh, value, edges, corner_edge, a, b, t, pinned):
+    """The cut of `cut_mesh` for crossings at fractions `t` (E,) from inner ends `a` (E,) to
+    outer ends `b` (E,) of the `edges`: the vertices (V + C, 3), the kept faces (K, 3) into
+    them, and which of the mesh's vertices moved onto a crossing (V,). Ends marked
+    `pinned` (V,) do not move."""
+    faces, vertices = mesh.faces, mesh.vertices.copy()
+    crossed = (value[a] < 0.0) & (value[b] >= 0.0)
     position = vertices[a] + t[:, None] * (vertices[b] - vertices[a])
     # Each end moves to the nearest crossing within SNAP of it, if any.
     rows = np.flatnonzero(crossed)
     end = np.concatenate([a[rows], b[rows]])
     near = np.concatenate([t[rows], 1.0 - t[rows]])
-    close = np.flatnonzero(near < SNAP)
+    close = np.flatnonzero((near < SNAP) & ~pinned[end])
     close = close[np.argsort(near[close], kind="stable")]
     moved, first = np.unique(end[close], return_index=True)
     vertices[moved] = position[np.concatenate([rows, rows])[close[first]]]
     # A move that would turn a triangle over is undone (the edge is cut instead).
     reference = face_area_vectors(mesh.vertices, faces)
     vertices, _ = undo_turned_faces(vertices, mesh.vertices, faces, reference)
-    value[np.any(vertices != mesh.vertices, axis=1)] = 0.0
+    moved = np.any(vertices != mesh.vertices, axis=1)
+    value = np.where(moved, 0.0, value)
     # Cut what is still crossed: each edge with one end inside and one outside.
     inside, outside = value < 0.0, value > 0.0
     cut = inside[a] & outside[b]
@@ -285,10 +307,14 @@ def cut_mesh(mesh: Mesh, value: np.ndarray, *, locate=None) -> tuple[Mesh, int]:
     )
     pieces += [np.stack(f, axis=1)[two & short] for f in ((pq, q, r), (pq, r, rp))]
     pieces += [np.stack(f, axis=1)[two & ~short] for f in ((pq, q, rp), (q, r, rp))]
-    kept = np.concatenate(pieces)
-    used, inverse = np.unique(kept, return_inverse=True)
-    mesh = Mesh(vertices=vertices[used], faces=inverse.reshape(-1, 3).astype(np.int64))
-    return mesh, int(np.count_nonzero(crossed))
+    return vertices, np.concatenate(pieces), moved
+
+
+def _bow_ties(faces: np.ndarray, n_vertices: int) -> np.ndarray:
+    """Whether (V,) each vertex joins more than one fan of `faces` (a bow tie)."""
+    fan, _ = corner_fans(faces, edge_ids(faces, n_vertices)[0])
+    pairs = np.unique(np.c_[faces.reshape(-1), fan], axis=0)
+    return np.bincount(pairs[:, 0], minlength=n_vertices) > 1
 
 
 def trim_to_data(
