@@ -16,7 +16,7 @@ import numpy as np
 from ._kernels.density import sector_nearest
 from ._kernels.linalg import eigh_rows
 from ._kernels.normals import centroid_covariance
-from .neighbours import build_tree
+from .neighbours import build_tree, step_cosines
 
 __all__ = [
     "SECTORS",
@@ -198,9 +198,8 @@ def gap_bridges(points, sectors, *, rho_delta: float, tree=None, normals=None) -
         chord, axis=1
     ) * np.linalg.norm(away[rows], axis=1)
     if normals is not None:
-        reach = ALONG * np.linalg.norm(chord, axis=1)
-        leaves &= np.abs(np.einsum("ij,ij->i", chord, normals[edge[rows]])) <= reach
-        leaves &= np.abs(np.einsum("ij,ij->i", chord, normals[partner])) <= reach
+        cos_start, cos_end = step_cosines(chord, normals[edge[rows]], normals[partner])
+        leaves &= (np.abs(cos_start) <= ALONG) & (np.abs(cos_end) <= ALONG)
     rows, direction, start, end = rows[leaves], direction[leaves], start[leaves], end[leaves]
     # Each chord is cut into `steps` pieces; its steps - 1 inner cut points are bridges.
     steps = np.ceil(length[rows, direction] / (BRIDGE_STEP * rho_delta)).astype(np.int64)

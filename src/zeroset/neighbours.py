@@ -7,7 +7,7 @@ from scipy.spatial import cKDTree
 
 from .types import Neighbourhoods
 
-__all__ = ["build_tree", "knn", "restrict", "spatial_order"]
+__all__ = ["ball_pairs", "build_tree", "knn", "restrict", "spatial_order", "step_cosines"]
 
 
 def build_tree(points: np.ndarray) -> cKDTree:
@@ -32,6 +32,16 @@ def ball_pairs(tree: cKDTree, positions: np.ndarray, radius) -> tuple[np.ndarray
     rows = np.repeat(np.arange(len(members)), counts)
     flat = np.fromiter((i for m in members for i in m), dtype=np.int64, count=int(counts.sum()))
     return rows, flat, counts
+
+
+def step_cosines(step, normals_a, normals_b) -> tuple[np.ndarray, np.ndarray]:
+    """Cosines (M,), (M,) between each `step` (M, 3) and the unit normals at its two ends:
+    near 0 where the step runs along a tangent plane, near 1 where it crosses it."""
+    unit_step = step / np.maximum(np.linalg.norm(step, axis=1), 1e-300)[:, None]
+    return (
+        np.einsum("ij,ij->i", unit_step, normals_a),
+        np.einsum("ij,ij->i", unit_step, normals_b),
+    )
 
 
 def spatial_order(points: np.ndarray) -> np.ndarray:

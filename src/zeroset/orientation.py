@@ -9,7 +9,7 @@ from scipy.sparse.csgraph import breadth_first_order, connected_components, mini
 from ._kernels.orientation import component_extremes, propagate_signs
 from ._validate import as_points, as_viewpoints, positive
 from .errors import InputError
-from .neighbours import build_tree, knn
+from .neighbours import build_tree, knn, step_cosines
 from .types import VIEWPOINTS_UNTRUSTED, Neighbourhoods, Orientation
 
 __all__ = ["orient_normals"]
@@ -215,7 +215,7 @@ def _unstack(centroids, normals, component, reach) -> np.ndarray:
         )
         found = distance <= reach[others]
         i, j = others[found], own[nearest[found]]
-        cos_i, cos_j = _step_cosines(centroids[j] - centroids[i], normals[i], normals[j])
+        cos_i, cos_j = step_cosines(centroids[j] - centroids[i], normals[i], normals[j])
         across = (np.abs(cos_i) > ON_ONE_SURFACE) & (np.abs(cos_j) > ON_ONE_SURFACE)
         # n_i . d > 0: i faces j; -n_j . d > 0: j faces i; facing alike agrees
         np.add.at(votes, (slot[component[i[across]]], b), -np.sign(cos_i * cos_j)[across])
@@ -231,15 +231,6 @@ def _unstack(centroids, normals, component, reach) -> np.ndarray:
     turn = np.ones(sizes.size)
     turn[taking] = np.where(sign == 0.0, 1.0, sign)
     return turn
-
-
-def _step_cosines(step, normals_a, normals_b) -> tuple[np.ndarray, np.ndarray]:
-    """Cosines (M,), (M,) between each `step` (M, 3) and the unit normals at its two ends."""
-    unit_step = step / np.maximum(np.linalg.norm(step, axis=1), 1e-300)[:, None]
-    return (
-        np.einsum("ij,ij->i", unit_step, normals_a),
-        np.einsum("ij,ij->i", unit_step, normals_b),
-    )
 
 
 def _abrupt(agree, anchored, rows, cols) -> float:
@@ -302,7 +293,7 @@ def _bridges(centroids, normals, component, reach) -> sparse.csr_matrix:
     )
     found = distance <= reach[others]
     partner = main[np.where(found, nearest, 0)]
-    cos_a, cos_b = _step_cosines(
+    cos_a, cos_b = step_cosines(
         centroids[partner] - centroids[others], normals[others], normals[partner]
     )
     found &= (np.abs(cos_a) <= ON_ONE_SURFACE) & (np.abs(cos_b) <= ON_ONE_SURFACE)

@@ -540,7 +540,7 @@ def trim_rim(mesh: Mesh, points, radii, reach, measured, parameters, config, sta
         hole=HOLE_BALL,
     )
     stats.update(counts)
-    # An end moved onto the cut can join two stretches of rim at one vertex: split it.
+    # Where the cut's own line pinches two stretches of rim into one vertex, split it.
     mesh, split = split_nonmanifold_vertices(mesh)
     stats["bowtie_vertices_split"] += split
     if config.max_hole_edges > 0:  # holes Hoppe's rule could not resolve either stay shut

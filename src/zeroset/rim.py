@@ -74,7 +74,9 @@ OPEN_ANGLE = np.pi / 2
 SNAP = 0.2
 
 
-def data_edge(points, radii, vertices, normals, *, reach=None, tree=None) -> np.ndarray:
+def data_edge(
+    points, radii, vertices, normals, *, reach=None, tree=None, hollow=None
+) -> np.ndarray:
     """Signed position (V,) of each vertex across the edge of the data, in disc radii.
 
     For a vertex v with unit normal n, R is ``DISC`` times the radius of the data point
@@ -98,6 +100,9 @@ def data_edge(points, radii, vertices, normals, *, reach=None, tree=None) -> np.
         How far from each point the surface may reach; `radii` by default.
     tree : cKDTree, optional
         A tree over `points`, to reuse one already built.
+    hollow : (V,) float64, optional
+        How deep each vertex lies in an empty ball (`empty_ball_depth`), data units; the
+        value is at least that over R.
     """
     tree = build_tree(points) if tree is None else tree
     reach = radii if reach is None else reach
@@ -120,6 +125,8 @@ def data_edge(points, radii, vertices, normals, *, reach=None, tree=None) -> np.
     value = np.maximum(value, 1.0 - narrow / THIN)
     # Beyond the reach of the nearest point, the surface is not defined at all.
     value = np.maximum(value, gap / reach[nearest] - 1.0)
+    if hollow is not None:
+        value = np.maximum(value, hollow / radius)
     return np.where(counts >= MIN_POINTS, value, 1.0)
 
 
@@ -367,7 +374,8 @@ def trim_to_data(
     centres, depths = np.zeros((0, 3)), np.zeros(0)
     if hole is not None:
         solid = np.ones(points.shape[0], bool) if measured is None else measured
-        centres, depths = empty_balls(mesh, normals, build_tree(points[solid]), hole * radii[solid])
+        solid_tree = tree if solid.all() else build_tree(points[solid])
+        centres, depths = empty_balls(mesh, normals, solid_tree, hole * radii[solid])
     balls, hollow = None, np.zeros(0, dtype=np.int64)
     if centres.shape[0]:
         balls = build_tree(centres)
@@ -376,9 +384,8 @@ def trim_to_data(
     near = np.flatnonzero(tested)
 
     def test(positions, normals):
-        value = data_edge(points, radii, positions, normals, reach=reach, tree=tree)
         depth = empty_ball_depth(positions, centres, depths, tree=balls)
-        return np.maximum(value, depth / (DISC * radii[tree.query(positions)[1]]))
+        return data_edge(points, radii, positions, normals, reach=reach, tree=tree, hollow=depth)
 
     value = np.full(mesh.n_vertices, -1.0)
     value[near] = test(mesh.vertices[near], normals[near])
