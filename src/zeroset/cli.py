@@ -484,11 +484,9 @@ def _run_reconstruct(args: argparse.Namespace) -> int:
 
 def _run_tiled(args: argparse.Namespace, config) -> int:
     """`reconstruct --tiles`: the tiles run on a Dask cluster, local unless --scheduler."""
-    import logging
-
     from . import io
     from .errors import InputError
-    from .tiles import parse_tiles, reconstruct_tiled
+    from .tiles import dask_client, parse_tiles, reconstruct_tiled
 
     if len(args.input) > 1 or args.poses or args.register or args.optimize or args.inspect:
         raise InputError(
@@ -503,34 +501,10 @@ def _run_tiled(args: argparse.Namespace, config) -> int:
         raise InputError("--workers must be a positive count, for the local cluster only")
     source = io.check_input(args.input[0]).resolve()
     parse_tiles(args.tiles)
-    try:
-        from distributed import Client, LocalCluster
-    except ImportError as error:
-        message = "--tiles runs on dask.distributed: pip install 'zeroset[tiles]'"
-        raise InputError(message) from error
-    if args.scheduler is not None:
-        client, cluster = Client(args.scheduler), None
-    else:
-        cluster = LocalCluster(
-            n_workers=args.workers,
-            threads_per_worker=1,
-            processes=True,
-            dashboard_address=":0",
-            silence_logs=logging.CRITICAL,
-        )
-        client = Client(cluster)
-    try:
+    with dask_client(args.scheduler, args.workers) as client:
         result = reconstruct_tiled(
-            source,
-            config,
-            tiles=args.tiles,
-            client=client,
-            progress=not args.quiet,
+            source, config, tiles=args.tiles, client=client, progress=not args.quiet
         )
-    finally:
-        client.close()
-        if cluster is not None:
-            cluster.close()
     return _finish(
         result,
         args,
@@ -961,11 +935,12 @@ def _finish(
         else:
             io.write_json(path, report)
     if preview_path is not None:
+        from .errors import MissingExtraError
         from .viz import RenderError, preview
 
         try:
             preview(result.mesh, preview_path, title=title or Path(source).name)
-        except RenderError as error:
+        except (RenderError, MissingExtraError) as error:
             if args.command != "demo":
                 raise
             print(f"zeroset: no preview picture: {error}", file=sys.stderr)

@@ -1,6 +1,12 @@
 """Exceptions raised by zeroset."""
 
-__all__ = ["InputError", "ReconstructionError", "SurfaceWarning", "ZerosetError"]
+__all__ = [
+    "InputError",
+    "MissingExtraError",
+    "ReconstructionError",
+    "SurfaceWarning",
+    "ZerosetError",
+]
 
 
 class ZerosetError(Exception):
@@ -9,6 +15,10 @@ class ZerosetError(Exception):
 
 class InputError(ZerosetError, ValueError):
     """An input file or array cannot be used: missing, unreadable, malformed or degenerate."""
+
+
+class MissingExtraError(ZerosetError, ImportError):
+    """A feature's optional dependency is not installed; the message names the extra."""
 
 
 class ReconstructionError(ZerosetError, RuntimeError):

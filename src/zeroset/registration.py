@@ -17,6 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ._extras import require
 from ._kernels.normals import centroid_covariance
 from ._progress import Stages
 from ._rigid import transform
@@ -453,7 +454,7 @@ def _align_rounds(
     round each scan in `order` is aligned to the fixed scan and those before it; in the
     later rounds, to all the others.
     """
-    import small_gicp
+    small_gicp = require("small_gicp", "registering scans")
 
     points = [
         small_gicp.voxelgrid_sampling(cloud, voxel, num_threads=1).points()[:, :3]
@@ -491,7 +492,7 @@ def _align_one(source_points, target_points, start, distance, *, name, reach, to
     `start` is the current correction; the one returned replaces it (and is `start` itself
     when too few points face the target, with a warning naming the scan as `name`).
     """
-    import small_gicp
+    small_gicp = require("small_gicp", "registering scans")
 
     target = small_gicp.PointCloud(target_points)
     target_tree = small_gicp.KdTree(target, num_threads=threads)

@@ -14,10 +14,12 @@ import logging
 import math
 import resource
 import time
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from ._extras import require
 from ._lattice import LIMIT
 from ._progress import Stages
 from ._validate import as_points
@@ -41,7 +43,13 @@ from .prepare import crop as inside
 from .refine import refine_mesh
 from .types import Jets, Mesh, Parameters
 
-__all__ = ["TiledReconstruction", "parse_tiles", "plan_tiles", "reconstruct_tiled"]
+__all__ = [
+    "TiledReconstruction",
+    "dask_client",
+    "parse_tiles",
+    "plan_tiles",
+    "reconstruct_tiled",
+]
 
 #: Halo around a tile's box: neighbourhoods, radii, bridges and the nearest planes of its
 #: border cubes all lie within this many rho_delta (and HALO_CUBES cubes) of the box.
@@ -137,6 +145,25 @@ def plan_tiles(
     return tiles
 
 
+@contextmanager
+def dask_client(scheduler: str | None = None, workers: int | None = None):
+    """A Dask client of the scheduler at address `scheduler`, or of a local cluster of
+    `workers` single-threaded processes (one per core by default), closed on exit."""
+    distributed = require("distributed", "tiled reconstruction (--tiles)")
+    if scheduler is not None:
+        with distributed.Client(scheduler) as client:
+            yield client
+        return
+    with distributed.LocalCluster(
+        n_workers=workers,
+        processes=True,
+        threads_per_worker=1,
+        dashboard_address=":0",
+        silence_logs=logging.CRITICAL,
+    ) as cluster, distributed.Client(cluster) as client:
+        yield client
+
+
 def reconstruct_tiled(
     source,
     config: ReconstructionConfig | None = None,
@@ -178,23 +205,10 @@ def reconstruct_tiled(
     if config.contour != "marching":
         raise InputError("tiles are contoured by marching cubes only; drop --contour cubes")
     if client is None:
-        from distributed import Client, LocalCluster
-
-        with LocalCluster(
-            processes=True,
-            threads_per_worker=1,
-            dashboard_address=":0",
-            silence_logs=logging.CRITICAL,
-        ) as cluster:
-            with Client(cluster) as local:
-                return reconstruct_tiled(
-                    source,
-                    config,
-                    tiles=tiles,
-                    client=local,
-                    parameters=parameters,
-                    progress=progress,
-                )
+        with dask_client() as local:
+            return reconstruct_tiled(
+                source, config, tiles=tiles, client=local, parameters=parameters, progress=progress
+            )
     if not isinstance(source, (str, bytes)) and not hasattr(source, "__fspath__"):
         source = as_points(source)
     timings: dict = {}
@@ -541,9 +555,7 @@ def _contour_tile(
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     worker = socket.gethostname()
     try:
-        from distributed import get_worker
-
-        worker = get_worker().address
+        worker = require("distributed", "tiled reconstruction (--tiles)").get_worker().address
     except ValueError:
         pass
     empty = {
@@ -630,8 +642,9 @@ def _gather(client, futures, what: str, progress: bool) -> list:
     """Results of `futures` in order, with a bar over those done."""
     import sys
 
-    from distributed import as_completed
     from tqdm.auto import tqdm
+
+    as_completed = require("distributed", "tiled reconstruction (--tiles)").as_completed
 
     bar = tqdm(
         total=len(futures),

@@ -22,12 +22,16 @@ __all__ = [
 
 
 class _Frozen:
-    """Mixin: mark every ndarray field read-only after construction."""
+    """Mixin: every ndarray field is read-only; a writeable one is copied first, so the
+    caller's arrays stay theirs to change."""
 
     def __post_init__(self) -> None:
         for f in fields(self):  # type: ignore[arg-type]
             value = getattr(self, f.name)
             if isinstance(value, np.ndarray):
+                if value.flags.writeable:
+                    value = value.copy()
+                    object.__setattr__(self, f.name, value)
                 value.flags.writeable = False
 
 

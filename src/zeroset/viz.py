@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ._extras import require
 from ._validate import as_points
 from .errors import InputError, ZerosetError
 from .io import atomic_target
@@ -149,7 +150,7 @@ def render(
         When no OpenGL context can be created (on Linux without a display, Mesa's EGL
         libraries are needed: ``apt-get install libegl1 libgl1-mesa-dri``).
     """
-    import moderngl
+    moderngl = require("moderngl", "drawing pictures")
 
     if mesh.n_faces == 0:
         raise InputError("nothing to render: the mesh has no faces")
@@ -256,12 +257,13 @@ def preview(mesh: Mesh, path: str | os.PathLike, *, title: str | None = None, **
     -------
     pathlib.Path
     """
-    from PIL import Image, ImageDraw
+    image = require("PIL.Image", "writing pictures")
+    draw = require("PIL.ImageDraw", "writing pictures")
 
     target = Path(path)
-    picture = Image.fromarray(render(mesh, **options))
+    picture = image.fromarray(render(mesh, **options))
     text = title or f"{mesh.n_vertices:,} vertices, {mesh.n_faces:,} triangles"
-    ImageDraw.Draw(picture).text((10, 8), text, fill=(0, 0, 0))
+    draw.Draw(picture).text((10, 8), text, fill=(0, 0, 0))
     with atomic_target(target) as temporary:
         picture.save(temporary, format="PNG")
     return target
@@ -311,7 +313,7 @@ def distance_colours(distances, *, limit: float | None = None) -> np.ndarray:
     -------
     (M, 3) float64 in [0, 1]
     """
-    from matplotlib import colormaps
+    colormaps = require("matplotlib", "colour maps").colormaps
 
     distances = np.asarray(distances, dtype=np.float64)
     known = np.isfinite(distances)
@@ -337,7 +339,7 @@ def intensity_colours(intensity) -> np.ndarray:
     -------
     (N, 3) float64 in [0, 1]
     """
-    from matplotlib import colormaps
+    colormaps = require("matplotlib", "colour maps").colormaps
 
     intensity = np.asarray(intensity, dtype=np.float64)
     low, high = np.percentile(intensity, [2, 98]) if intensity.size else (0.0, 1.0)
@@ -348,7 +350,7 @@ def intensity_colours(intensity) -> np.ndarray:
 @cache
 def _context():
     """One standalone OpenGL context per process: the platform's own, else EGL."""
-    import moderngl
+    moderngl = require("moderngl", "drawing pictures")
 
     errors = []
     for backend in (None, "egl"):

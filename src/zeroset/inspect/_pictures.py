@@ -7,6 +7,7 @@ import io
 
 import numpy as np
 
+from .._extras import require
 from ..types import Mesh
 from ._inspection import Inspection
 
@@ -34,7 +35,7 @@ def colour_limit(inspection: Inspection) -> float:
 def deviation_colours(deviation, limit: float) -> np.ndarray:
     """(M, 3) colours in [0, 1] of signed deviations (m): blue inward, red outward, at
     `limit` the deepest; grey where NaN."""
-    from matplotlib import colormaps
+    colormaps = require("matplotlib", "colour maps").colormaps
 
     deviation = np.asarray(deviation, dtype=np.float64)
     scaled = 0.5 + 0.5 * np.clip(np.nan_to_num(deviation) / limit, -1.0, 1.0)
@@ -104,14 +105,14 @@ def ovality_plot(inspection: Inspection) -> bytes:
 def mesh_picture(mesh: Mesh, inspection: Inspection, *, width=1200, height=600) -> bytes:
     """PNG of the mesh coloured by each vertex's deviation (needs OpenGL; see
     `zeroset.viz.render`)."""
-    from PIL import Image
+    image = require("PIL.Image", "writing pictures")
 
     from ..viz import render
 
     colours = deviation_colours(inspection.vertex_deviation, colour_limit(inspection))
     pixels = render(mesh, colours=colours, width=width, height=height)
     buffer = io.BytesIO()
-    Image.fromarray(pixels).save(buffer, format="PNG")
+    image.fromarray(pixels).save(buffer, format="PNG")
     return buffer.getvalue()
 
 
@@ -124,9 +125,9 @@ def _headline(inspection: Inspection) -> str:
 
 
 def _figure(width: float, height: float):
-    from matplotlib.figure import Figure
+    figures = require("matplotlib.figure", "inspection plots")
 
-    figure = Figure(figsize=(width, height), dpi=110, layout="constrained")
+    figure = figures.Figure(figsize=(width, height), dpi=110, layout="constrained")
     return figure, figure.add_subplot()
 
 

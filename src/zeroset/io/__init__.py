@@ -64,7 +64,7 @@ _POINT_WRITERS = {
 _MESH_READERS = {
     ".obj": _mesh.read_mesh,
     ".off": _mesh.read_mesh,
-    ".ply": _mesh.read_mesh,
+    ".ply": _ply.read_mesh,
     ".stl": _mesh.read_mesh,
 }
 _MESH_WRITERS = {

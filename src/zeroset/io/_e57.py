@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .._extras import require
 from ..errors import InputError
 from ._sniff import check_content
 
@@ -36,7 +37,7 @@ def read_points(path: Path) -> dict[str, np.ndarray | None]:
         If libE57Format cannot read the file or it holds no scans. Messages carry no path
         prefix.
     """
-    import pye57
+    pye57 = require("pye57", "reading .e57 files")
 
     check_content(path, (".e57",), "E57 file")
     try:

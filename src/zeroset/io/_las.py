@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .._extras import require
 from ..errors import InputError
 from ..prepare import CHUNK_POINTS
 from ._fields import NORMALS, VIEWPOINTS, find_group, stack
@@ -66,7 +67,7 @@ def iter_chunks(path: Path, chunk_points: int) -> Iterator[dict[str, np.ndarray 
         If the file is not LAS/LAZ, is truncated, or cannot be decompressed. Messages carry
         no path prefix.
     """
-    import laspy
+    laspy = require("laspy", "reading .las and .laz files")
     import lazrs
 
     _check_header(path)

@@ -1,6 +1,7 @@
 """Triangle meshes in and out: PLY through plyfile, OBJ, OFF and STL through trimesh.
 
-trimesh takes about a second to import, so it is imported inside the functions that use it.
+trimesh (the ``mesh`` extra) takes about a second to import, so it is imported inside the
+functions that use it.
 """
 
 from __future__ import annotations
@@ -9,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .._extras import require
 from ..errors import InputError
 from ._ply import write_ply as _write_ply_file
 
@@ -21,7 +23,7 @@ _DIGITS = 12
 
 def _trimesh(vertices: np.ndarray, faces: np.ndarray):
     """Wrap arrays in a trimesh.Trimesh that merges, drops and reorders nothing."""
-    import trimesh
+    trimesh = require("trimesh", "OBJ, OFF and STL meshes")
 
     return trimesh.Trimesh(vertices=vertices, faces=faces, process=False)
 
@@ -55,7 +57,7 @@ def write_obj(path: Path, vertices: np.ndarray, faces: np.ndarray, *, binary: bo
     binary : bool
         Ignored.
     """
-    import trimesh
+    trimesh = require("trimesh", "OBJ, OFF and STL meshes")
 
     text = trimesh.exchange.obj.export_obj(
         _trimesh(vertices, faces),
@@ -79,7 +81,7 @@ def write_off(path: Path, vertices: np.ndarray, faces: np.ndarray, *, binary: bo
     binary : bool
         Ignored.
     """
-    import trimesh
+    trimesh = require("trimesh", "OBJ, OFF and STL meshes")
 
     text = trimesh.exchange.off.export_off(_trimesh(vertices, faces), digits=_DIGITS)
     path.write_text(text, encoding="utf-8")
@@ -96,7 +98,7 @@ def write_stl(path: Path, vertices: np.ndarray, faces: np.ndarray, *, binary: bo
     binary : bool
         Binary STL when True, ASCII STL otherwise.
     """
-    import trimesh
+    trimesh = require("trimesh", "OBJ, OFF and STL meshes")
 
     mesh = _trimesh(vertices, faces)
     if binary:
@@ -106,7 +108,7 @@ def write_stl(path: Path, vertices: np.ndarray, faces: np.ndarray, *, binary: bo
 
 
 def read_mesh(path: Path) -> tuple[np.ndarray, np.ndarray]:
-    """Read a triangle mesh with trimesh, keeping vertex order.
+    """Read an OBJ, OFF or STL triangle mesh with trimesh, keeping vertex order.
 
     STL stores three corners per triangle, so identical corners are merged back into shared
     vertices, numbered in order of first appearance.
@@ -114,7 +116,7 @@ def read_mesh(path: Path) -> tuple[np.ndarray, np.ndarray]:
     Parameters
     ----------
     path : pathlib.Path
-        A ``.ply``, ``.obj``, ``.off`` or ``.stl`` file; the suffix names the format.
+        A ``.obj``, ``.off`` or ``.stl`` file; the suffix names the format.
 
     Returns
     -------
@@ -128,7 +130,7 @@ def read_mesh(path: Path) -> tuple[np.ndarray, np.ndarray]:
         If trimesh cannot parse the file or finds no triangles in it. Messages carry no path
         prefix.
     """
-    import trimesh
+    trimesh = require("trimesh", "OBJ, OFF and STL meshes")
 
     file_type = path.suffix.lower().lstrip(".")
     try:

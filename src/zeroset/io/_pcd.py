@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .._extras import require
 from ..errors import InputError
 from ._fields import INTENSITY, NORMALS, VIEWPOINTS, XYZ, find_group, stack
 from ._sniff import check_content
@@ -46,11 +47,11 @@ def read_points(path: Path) -> dict[str, np.ndarray | None]:
         If the file is not valid PCD, its data is shorter than its header says, or it has
         no ``x y z`` fields. Messages carry no path prefix.
     """
-    from pypcd4 import PointCloud
+    pypcd4 = require("pypcd4", "reading .pcd files")
 
     count = _check_layout(path)
     try:
-        cloud = PointCloud.from_path(path)
+        cloud = pypcd4.PointCloud.from_path(path)
         data = cloud.pc_data
     except Exception as exc:  # pypcd4 raises many kinds (pydantic, numpy, lzf) on bad input
         raise InputError(f"not a valid PCD file ({_first_line(exc)})") from exc

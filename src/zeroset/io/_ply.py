@@ -1,4 +1,4 @@
-"""PLY points in (through plyfile), PLY points and meshes out in float64."""
+"""PLY points and meshes in (through plyfile), PLY points and meshes out in float64."""
 
 from __future__ import annotations
 
@@ -17,7 +17,7 @@ from ..errors import InputError
 from ._fields import INTENSITY, NORMALS, VIEWPOINTS, XYZ, find_group, stack
 from ._sniff import check_content
 
-__all__ = ["iter_chunks", "read_points", "write_ply", "write_points"]
+__all__ = ["iter_chunks", "read_mesh", "read_points", "write_ply", "write_points"]
 
 
 #: Bytes a header may take; plyfile parses headers a byte at a time (about 2 MB/s).
@@ -62,6 +62,71 @@ def read_points(path: Path) -> dict[str, np.ndarray | None]:
         a group (``nx`` without ``nz``, say). Messages carry no path prefix.
     """
     return next(iter_chunks(path, None))
+
+
+def read_mesh(path: Path) -> tuple[np.ndarray, np.ndarray]:
+    """Read the ``vertex`` positions and ``face`` polygons of a PLY mesh, in file order.
+
+    Parameters
+    ----------
+    path : pathlib.Path
+        An ASCII or binary PLY file whose ``face`` element has a list property
+        ``vertex_indices`` (or ``vertex_index``).
+
+    Returns
+    -------
+    vertices : (M, 3) float64
+    faces : (F, 3) int64
+        Polygons of more than three corners are split into fans from their first corner;
+        rows of fewer than three are dropped.
+
+    Raises
+    ------
+    InputError
+        If the file is not valid PLY or holds no triangles; messages carry no path prefix.
+    """
+    header = _header(path)
+    _check_length(path, header)
+    face = next((e for e in header.elements if e.name == "face"), None) if header else None
+    names = [name for name, _, is_list, _ in face.properties if is_list] if face else []
+    name = next((n for n in ("vertex_indices", "vertex_index") if n in names), None)
+    if name is None:
+        raise InputError("contains no triangles (no 'face' element with 'vertex_indices')")
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", UserWarning)
+            try:  # triangles only: one read of fixed-length rows, not one per row
+                data = plyfile.PlyData.read(os.fspath(path), known_list_len={"face": {name: 3}})
+                polygons = [np.asarray(data["face"].data[name], dtype=np.int64)]
+            except (plyfile.PlyParseError, ValueError):
+                data = plyfile.PlyData.read(os.fspath(path))
+                polygons = [np.asarray(row, dtype=np.int64) for row in data["face"].data[name]]
+    except (plyfile.PlyParseError, ValueError) as exc:
+        raise InputError(f"not a valid PLY file ({exc})") from exc
+    if "vertex" not in data:
+        raise InputError("has no 'vertex' element")
+    vertex = data["vertex"].data
+    try:
+        vertices = np.column_stack([vertex[axis] for axis in "xyz"]).astype(np.float64)
+    except (KeyError, ValueError) as exc:
+        raise InputError(f"has no x, y, z vertex properties ({exc})") from exc
+    faces = _fans(polygons)
+    if faces.shape[0] == 0:
+        raise InputError("contains no triangles (empty, or not a valid PLY mesh)")
+    return vertices, faces
+
+
+def _fans(polygons: list[np.ndarray]) -> np.ndarray:
+    """Triangles (F, 3): one (T, 3) array of triangles as is, or each polygon (K,) as the
+    fan of its first corner."""
+    if len(polygons) == 1 and polygons[0].ndim == 2:
+        return polygons[0].reshape(-1, 3)
+    fans = [
+        np.column_stack([np.full(row.size - 2, row[0]), row[1:-1], row[2:]])
+        for row in polygons
+        if row.size >= 3
+    ]
+    return np.concatenate(fans) if fans else np.zeros((0, 3), dtype=np.int64)
 
 
 def iter_chunks(path: Path, chunk_points: int | None) -> Iterator[dict[str, np.ndarray | None]]:
