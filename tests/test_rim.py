@@ -225,3 +225,34 @@ def test_holes_narrower_than_the_limit_are_closed(width, filled):
     assert len(topology.boundary_loops(closed.faces)) == 2 - filled
     assert topology.is_edge_manifold(closed.faces)
     assert topology.is_consistently_oriented(closed.faces)
+
+
+def test_the_outer_edge_of_a_patch_is_never_filled():
+    # A loop is filled only from the side its mesh faces: a patch's outer edge runs the
+    # other way round from a hole's, and a fan over it would fold back over the patch.
+    patch = _plane_mesh(3)
+    kept, count, widest = fill_small_holes(patch, WIDTH_EDGES, closable=lambda ring: True)
+    assert count == 0 and kept.n_faces == patch.n_faces and widest == 0.0
+
+
+@pytest.mark.parametrize("half_width, closed", [(1.3, True), (2.0, False)])
+def test_a_gap_with_room_for_no_empty_ball_is_closed(half_width, closed):
+    # A slot 6 rho+delta long in the sampling of a plane, without gap bridges: the edge test
+    # opens it (its middle lies beyond the reach of the data), but a slot 2.6 rho+delta wide
+    # has room for no empty ball of 1.75 radii, the rule that opens a hole, and is closed
+    # again; one 4 rho+delta wide has, and stays open.
+    rng = np.random.default_rng(0)
+    points = np.column_stack([rng.uniform(-0.5, 0.5, (12_000, 2)), 0.001 * rng.normal(size=12_000)])
+    rho_delta = 0.0245
+    slot = (np.abs(points[:, 0]) < half_width * rho_delta) & (np.abs(points[:, 1]) < 3 * rho_delta)
+    result = reconstruct(points[~slot], rho_delta=rho_delta, gap_bridges=False)
+    mesh = result.mesh
+    gap = points_to_mesh_distance(np.zeros((1, 3)), mesh)[0]
+    assert result.stats["boundary_loops"] == (1 if closed else 2)
+    if closed:
+        assert result.stats["small_holes_filled"] >= 1
+        assert gap < 0.1 * rho_delta  # the slot's middle is covered, on the plane
+        assert np.abs(mesh.vertices[:, 2]).max() < 0.005
+    else:
+        assert gap > half_width * rho_delta - 0.5 * rho_delta
+    assert topology.is_edge_manifold(mesh.faces) and topology.is_consistently_oriented(mesh.faces)

@@ -85,7 +85,7 @@ class ReconstructionConfig:
     max_hole_edges: int = _opt(
         6,
         "close boundary loops of at most this many edges that are at most 2 rho_delta "
-        "across, and holes the rim cut opened that are at most 2 rho_delta across (0: none)",
+        "across, and holes the rim cut opened that have room for no empty ball (0: none)",
     )
     c_rep: float | None = _opt(
         None, "phase 2: cost of a vertex, normalised to a unit diagonal (default: from the noise)"

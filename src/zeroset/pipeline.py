@@ -44,7 +44,7 @@ from .repair import (
     remove_small_components,
     split_nonmanifold_vertices,
 )
-from .rim import trim_to_data
+from .rim import no_empty_ball, trim_to_data
 from .types import DistanceField, Jets, Mesh, Orientation, Parameters, TangentPlanes
 
 __all__ = ["Reconstruction", "reconstruct"]
@@ -529,7 +529,8 @@ def repair(mesh: Mesh, parameters, config, stats) -> Mesh:
 def trim_rim(mesh: Mesh, points, radii, reach, measured, parameters, config, stats) -> Mesh:
     """Stage "rim": cut the boundaries back to the edge of the data (`data_support`), and
     open every hole wider than the longest gap bridge to its measured points
-    (``HOLE_BALL``); counts to `stats`."""
+    (``HOLE_BALL``); a hole the cut opened with room for no such ball is closed again;
+    counts to `stats`."""
     mesh, counts = trim_to_data(
         mesh,
         points,
@@ -543,10 +544,9 @@ def trim_rim(mesh: Mesh, points, radii, reach, measured, parameters, config, sta
     # Where the cut's own line pinches two stretches of rim into one vertex, split it.
     mesh, split = split_nonmanifold_vertices(mesh)
     stats["bowtie_vertices_split"] += split
-    if config.max_hole_edges > 0:  # holes Hoppe's rule could not resolve either stay shut
-        mesh, filled, widest = fill_small_holes(
-            mesh, WIDTH_EDGES, max_width=HOLE_WIDTH * parameters.rho_delta
-        )
+    if config.max_hole_edges > 0:  # gaps with room for no empty ball are no holes
+        closable = no_empty_ball(points[measured], HOLE_BALL * radii[measured])
+        mesh, filled, widest = fill_small_holes(mesh, WIDTH_EDGES, closable=closable)
         stats["small_holes_filled"] += filled
         stats["widest_hole_filled"] = max(stats["widest_hole_filled"], widest)
     mesh, dropped = remove_small_components(mesh, config.min_component_faces)

@@ -4,10 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from .topology import boundary_loops, corner_fans, edge_face_counts, edge_ids, face_components
+from .topology import boundary_loops, corner_fans, edge_ids, face_components, vertex_normals
 from .types import Mesh
 
 __all__ = [
+    "fan_samples",
     "fill_small_holes",
     "keep_faces",
     "remove_small_components",
@@ -61,7 +62,10 @@ def split_nonmanifold_vertices(mesh: Mesh) -> tuple[Mesh, int]:
 
 
 #: Most edges of a loop that the rim cut may close (`zeroset.pipeline.trim_rim`).
-WIDTH_EDGES = 64
+WIDTH_EDGES = 128
+#: Fractions of the way from a loop's centroid to each of its vertices and edge midpoints
+#: at which `fan_samples` samples the fan over it.
+FAN_FRACTIONS = (0.0, 0.25, 0.5, 0.75)
 
 
 def _width(mesh: Mesh, loop: np.ndarray) -> float:
@@ -70,18 +74,47 @@ def _width(mesh: Mesh, loop: np.ndarray) -> float:
     return float(np.linalg.norm(ring[:, None] - ring[None], axis=2).max())
 
 
+def fan_samples(ring: np.ndarray) -> np.ndarray:
+    """Points (S, 3) spread over the fan from the centroid of a loop `ring` (K, 3): at
+    ``FAN_FRACTIONS`` of the way to each vertex and to each edge's midpoint."""
+    centre = ring.mean(axis=0)
+    targets = np.concatenate([ring, 0.5 * (ring + np.roll(ring, -1, axis=0))])
+    fractions = np.asarray(FAN_FRACTIONS)[:, None, None]
+    return (centre + fractions * (targets - centre)).reshape(-1, 3)
+
+
+def _faces_the_mesh(ring: np.ndarray, normals: np.ndarray) -> bool:
+    """Whether the fan over a loop `ring` (K, 3), against the loop's direction, faces the
+    way of the unit vertex `normals` (K, 3) along it."""
+    centre = ring.mean(axis=0)
+    area = np.cross(ring - centre, np.roll(ring, -1, axis=0) - centre).sum(axis=0)
+    return float(-area @ normals.sum(axis=0)) > 0.0
+
+
 def fill_small_holes(
-    mesh: Mesh, max_edges: int, *, max_width: float | None = None
+    mesh: Mesh, max_edges: int, *, max_width: float | None = None, closable=None
 ) -> tuple[Mesh, int, float]:
-    """Close boundary loops of at most `max_edges` edges and at most `max_width` across
-    with a fan of triangles.
+    """Close boundary loops of at most `max_edges` edges, at most `max_width` across and,
+    given `closable`, that it accepts.
 
     A hole narrower than the data can resolve is a cube that contouring skipped, not a hole
     in the object: where the signed distance is defined within rho+delta of the data on
     either side, a hole up to 2 rho+delta across is closed by Hoppe's rule (thesis 3.2.1,
-    3.4.6). The width of a loop is the largest distance between two of its vertices.
-    The fan's apex is chosen so that no new edge duplicates an existing one; a loop with
-    no such apex is left open. The mesh must be vertex-manifold.
+    3.4.6). The width of a loop is the largest distance between two of its vertices. A
+    loop is a hole only if the fan over it faces the way the mesh around it does: the outer
+    edge of a patch runs the other way round, and its fan would fold back over the patch.
+    A loop of three edges becomes a triangle, a longer one a fan about a new vertex at its
+    centroid (no new edge can then duplicate one the mesh has). The mesh must be
+    vertex-manifold.
+
+    Parameters
+    ----------
+    mesh : Mesh
+    max_edges : int
+    max_width : float, optional
+        Data units.
+    closable : callable, optional
+        ``closable(ring (K, 3)) -> bool`` for the positions of a loop's vertices.
 
     Returns
     -------
@@ -91,9 +124,7 @@ def fill_small_holes(
     widest : float
         The largest width of a loop closed, in data units; 0 when none was.
     """
-    edges = edge_face_counts(mesh.faces)[0]
-    existing = set(zip(edges[:, 0].tolist(), edges[:, 1].tolist(), strict=True))
-    new_faces = []
+    apexes, new_faces, normals = [], [], None
     filled, widest = 0, 0.0
     for loop in boundary_loops(mesh.faces):
         if len(loop) > max_edges:
@@ -101,18 +132,24 @@ def fill_small_holes(
         width = _width(mesh, loop)
         if max_width is not None and not width <= max_width:
             continue
-        loop = loop.tolist()
-        for shift in range(len(loop)):
-            ring = loop[shift:] + loop[:shift]
-            diagonals = {tuple(sorted((ring[0], v))) for v in ring[2:-1]}
-            if not diagonals & existing:
-                # Boundary edges run (v_i, v_i+1) in their faces; the fill runs against them.
-                new_faces.extend((ring[0], ring[i + 1], ring[i]) for i in range(1, len(ring) - 1))
-                existing |= diagonals
-                filled += 1
-                widest = max(widest, width)
-                break
+        ring = mesh.vertices[loop]
+        if normals is None:
+            normals = vertex_normals(mesh)
+        if not _faces_the_mesh(ring, normals[loop]):
+            continue
+        if closable is not None and not closable(ring):
+            continue
+        # Boundary edges run (v_i, v_i+1) in their faces; the fill runs against them.
+        if len(loop) == 3:
+            new_faces.append(loop[[0, 2, 1]][None])
+        else:
+            apex = mesh.n_vertices + len(apexes)
+            apexes.append(ring.mean(axis=0))
+            new_faces.append(np.column_stack([np.full(len(loop), apex), np.roll(loop, -1), loop]))
+        filled += 1
+        widest = max(widest, width)
     if not new_faces:
         return mesh, 0, 0.0
-    faces = np.concatenate([mesh.faces, np.array(new_faces, dtype=np.int64)])
-    return Mesh(vertices=mesh.vertices, faces=faces), filled, widest
+    vertices = np.concatenate([mesh.vertices, np.reshape(apexes, (-1, 3))])
+    faces = np.concatenate([mesh.faces, *new_faces]).astype(np.int64)
+    return Mesh(vertices=vertices, faces=faces), filled, widest

@@ -25,6 +25,7 @@ from __future__ import annotations
 import numpy as np
 
 from .neighbours import ball_pairs, build_tree
+from .repair import fan_samples
 from .topology import (
     boundary_edges,
     corner_fans,
@@ -42,6 +43,7 @@ __all__ = [
     "data_edge",
     "empty_ball_depth",
     "empty_balls",
+    "no_empty_ball",
     "trim_to_data",
 ]
 
@@ -168,6 +170,22 @@ def empty_balls(mesh: Mesh, normals, tree, least) -> tuple[np.ndarray, np.ndarra
     empty = np.flatnonzero(radii >= least[np.concatenate([nearest, near])])
     enclosed = _enclosed(centres[empty], radii[empty], normal[empty], tree)
     return centres[empty[enclosed]], radii[empty[enclosed]]
+
+
+def no_empty_ball(points, least):
+    """A test for `zeroset.repair.fill_small_holes`: whether the fan over a loop
+    (`zeroset.repair.fan_samples`) lies everywhere within `least` (N,) of the nearest of
+    the `points` (N, 3), so that the hole has room for no empty ball: a gap in the
+    sampling, not a hole. The k-d tree is built at the first loop tested."""
+    tree = None
+
+    def closable(ring: np.ndarray) -> bool:
+        nonlocal tree
+        tree = build_tree(points) if tree is None else tree
+        gap, nearest = tree.query(fan_samples(ring), workers=-1)
+        return bool(np.all(gap < least[nearest]))
+
+    return closable
 
 
 def _enclosed(centres, radii, normals, tree) -> np.ndarray:
