@@ -98,3 +98,23 @@ def test_results_copy_the_callers_arrays():
     assert mesh.vertices[0].tolist() == [0.0, 0.0, 0.0] and mesh.faces[0, 0] == 0
     with pytest.raises(ValueError, match="read-only"):
         mesh.vertices[0] = 1.0
+
+
+@pytest.mark.parametrize(
+    "blocked, options, extra",
+    [
+        ("trimesh", ["-o", "mesh.obj"], "mesh"),
+        ("moderngl", ["-o", "m.ply", "--preview", "p.png"], "render"),
+    ],
+)
+def test_a_missing_extra_stops_the_run_before_any_work(
+    tmp_path, monkeypatch, capsys, blocked, options, extra
+):
+    cloud = tmp_path / "cloud.ply"
+    io.write_points(cloud, np.random.default_rng(0).normal(size=(2000, 3)))
+    monkeypatch.setitem(sys.modules, blocked, None)
+    monkeypatch.chdir(tmp_path)
+    assert main(["reconstruct", str(cloud), *options]) == 2
+    (line,) = capsys.readouterr().err.strip().splitlines()  # no warning of a run: none ran
+    assert line.endswith(f"needs the '{extra}' extra: pip install 'zeroset[{extra}]'")
+    assert sorted(path.name for path in tmp_path.iterdir()) == ["cloud.ply"]

@@ -434,6 +434,10 @@ def _run_reconstruct(args: argparse.Namespace) -> int:
         force=args.force,
         mesh=args.output,
     )
+    if args.preview is not None:
+        from .viz import picture_modules
+
+        picture_modules()  # a missing extra stops the run here, not after it
     if args.register and len(args.input) < 2:
         raise InputError(f"{args.input[0]}: --register needs two or more scans")
     config = ReconstructionConfig().with_overrides(**_config_overrides(args))
@@ -793,10 +797,9 @@ def _run_demo(args: argparse.Namespace) -> int:
             f"accuracy    mesh vertices lie {1000 * distance.mean():.2f} mm (mean) and "
             f"{1000 * distance.max():.2f} mm (max) from the true pipe"
         )
-        print(
-            f"wrote       {args.out}/: pipe-points.ply, mesh.ply, preview.png, report.json, "
-            "report.html (open it in a browser)"
-        )
+        names = ("pipe-points.ply", "mesh.ply", "preview.png", "report.json", "report.html")
+        written = ", ".join(name for name in names if (args.out / name).exists())
+        print(f"wrote       {args.out}/: {written} (open report.html in a browser)")
     return code
 
 

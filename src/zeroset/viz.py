@@ -23,6 +23,7 @@ __all__ = [
     "RenderError",
     "distance_colours",
     "intensity_colours",
+    "picture_modules",
     "preview",
     "render",
     "vertex_distances",
@@ -150,7 +151,7 @@ def render(
         When no OpenGL context can be created (on Linux without a display, Mesa's EGL
         libraries are needed: ``apt-get install libegl1 libgl1-mesa-dri``).
     """
-    moderngl = require("moderngl", "drawing pictures")
+    moderngl = picture_modules()[0]
 
     if mesh.n_faces == 0:
         raise InputError("nothing to render: the mesh has no faces")
@@ -257,8 +258,7 @@ def preview(mesh: Mesh, path: str | os.PathLike, *, title: str | None = None, **
     -------
     pathlib.Path
     """
-    image = require("PIL.Image", "writing pictures")
-    draw = require("PIL.ImageDraw", "writing pictures")
+    _, image, draw = picture_modules()
 
     target = Path(path)
     picture = image.fromarray(render(mesh, **options))
@@ -347,10 +347,18 @@ def intensity_colours(intensity) -> np.ndarray:
     return colormaps["plasma"](scaled)[:, :3]
 
 
+def picture_modules() -> tuple:
+    """moderngl, PIL.Image and PIL.ImageDraw: what drawing a picture imports (the
+    ``render`` extra)."""
+    return tuple(
+        require(name, "drawing pictures") for name in ("moderngl", "PIL.Image", "PIL.ImageDraw")
+    )
+
+
 @cache
 def _context():
     """One standalone OpenGL context per process: the platform's own, else EGL."""
-    moderngl = require("moderngl", "drawing pictures")
+    moderngl = picture_modules()[0]
 
     errors = []
     for backend in (None, "egl"):

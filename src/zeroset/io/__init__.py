@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .._extras import require
 from .._validate import as_faces, as_points, as_poses
 from ..errors import InputError
 from ..prepare import CHUNK_POINTS, reduce_chunks
@@ -72,6 +73,17 @@ _MESH_WRITERS = {
     ".off": _mesh.write_off,
     ".ply": _mesh.write_ply,
     ".stl": _mesh.write_stl,
+}
+
+# The optional module each format needs (`zeroset._extras.require`), checked with the suffix.
+_NEEDS = {
+    ".e57": _e57.NEEDS,
+    ".las": _las.NEEDS,
+    ".laz": _las.NEEDS,
+    ".obj": _mesh.NEEDS,
+    ".off": _mesh.NEEDS,
+    ".pcd": _pcd.NEEDS,
+    ".stl": _mesh.NEEDS,
 }
 
 _POSE_READERS = {".conf": _poses.read_conf, ".csv": _poses.read_csv, ".json": _poses.read_json}
@@ -418,12 +430,15 @@ def write_mesh(path: str | os.PathLike, mesh, *, binary: bool = True) -> Path:
 
 
 def _lookup(path: str | os.PathLike, table: dict, kind: str):
-    """Return `path` as a Path and the table entry for its lower-case suffix."""
+    """Return `path` as a Path and the table entry for its lower-case suffix, once the
+    optional module the format needs is known to be installed."""
     target = Path(path)
     suffix = target.suffix.lower()
     if suffix not in table:
         found = f"unknown {kind} format {suffix!r}" if suffix else "has no suffix"
         raise InputError(f"{os.fspath(path)}: {found}; supported: {', '.join(sorted(table))}")
+    if suffix in _NEEDS:
+        require(*_NEEDS[suffix])
     return target, table[suffix]
 
 

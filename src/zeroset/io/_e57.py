@@ -12,6 +12,9 @@ from ._sniff import check_content
 
 __all__ = ["read_points"]
 
+#: The optional module this format needs, and what for (`zeroset._extras.require`).
+NEEDS = ("pye57", "reading .e57 files")
+
 
 def read_points(path: Path) -> dict[str, np.ndarray | None]:
     """Read every scan of an E57 file, moved into the file's frame by its pose.
@@ -37,7 +40,7 @@ def read_points(path: Path) -> dict[str, np.ndarray | None]:
         If libE57Format cannot read the file or it holds no scans. Messages carry no path
         prefix.
     """
-    pye57 = require("pye57", "reading .e57 files")
+    pye57 = require(*NEEDS)
 
     check_content(path, (".e57",), "E57 file")
     try:

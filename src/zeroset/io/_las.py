@@ -19,6 +19,9 @@ from ._sniff import check_content
 
 __all__ = ["iter_chunks", "read_points"]
 
+#: The optional module this format needs, and what for (`zeroset._extras.require`).
+NEEDS = ("laspy", "reading .las and .laz files")
+
 # The public header block up to the VLR count: signature, then at byte 94 the header size,
 # the offset to the point data and the number of VLRs (LAS 1.0-1.4).
 _HEADER = struct.Struct("<4s90xHII")
@@ -67,7 +70,7 @@ def iter_chunks(path: Path, chunk_points: int) -> Iterator[dict[str, np.ndarray 
         If the file is not LAS/LAZ, is truncated, or cannot be decompressed. Messages carry
         no path prefix.
     """
-    laspy = require("laspy", "reading .las and .laz files")
+    laspy = require(*NEEDS)
     import lazrs
 
     _check_header(path)

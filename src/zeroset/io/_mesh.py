@@ -16,6 +16,9 @@ from ._ply import write_ply as _write_ply_file
 
 __all__ = ["read_mesh", "write_obj", "write_off", "write_ply", "write_stl"]
 
+#: The optional module this format needs, and what for (`zeroset._extras.require`).
+NEEDS = ("trimesh", "reading and writing OBJ, OFF and STL meshes")
+
 # Decimals in OBJ and OFF text. trimesh writes fixed-point, so 12 decimals round-trip a
 # float64 exactly from about 1e4 upwards and to 5e-13 absolute below that.
 _DIGITS = 12
@@ -23,7 +26,7 @@ _DIGITS = 12
 
 def _trimesh(vertices: np.ndarray, faces: np.ndarray):
     """Wrap arrays in a trimesh.Trimesh that merges, drops and reorders nothing."""
-    trimesh = require("trimesh", "OBJ, OFF and STL meshes")
+    trimesh = require(*NEEDS)
 
     return trimesh.Trimesh(vertices=vertices, faces=faces, process=False)
 
@@ -57,7 +60,7 @@ def write_obj(path: Path, vertices: np.ndarray, faces: np.ndarray, *, binary: bo
     binary : bool
         Ignored.
     """
-    trimesh = require("trimesh", "OBJ, OFF and STL meshes")
+    trimesh = require(*NEEDS)
 
     text = trimesh.exchange.obj.export_obj(
         _trimesh(vertices, faces),
@@ -81,7 +84,7 @@ def write_off(path: Path, vertices: np.ndarray, faces: np.ndarray, *, binary: bo
     binary : bool
         Ignored.
     """
-    trimesh = require("trimesh", "OBJ, OFF and STL meshes")
+    trimesh = require(*NEEDS)
 
     text = trimesh.exchange.off.export_off(_trimesh(vertices, faces), digits=_DIGITS)
     path.write_text(text, encoding="utf-8")
@@ -98,7 +101,7 @@ def write_stl(path: Path, vertices: np.ndarray, faces: np.ndarray, *, binary: bo
     binary : bool
         Binary STL when True, ASCII STL otherwise.
     """
-    trimesh = require("trimesh", "OBJ, OFF and STL meshes")
+    trimesh = require(*NEEDS)
 
     mesh = _trimesh(vertices, faces)
     if binary:
@@ -130,7 +133,7 @@ def read_mesh(path: Path) -> tuple[np.ndarray, np.ndarray]:
         If trimesh cannot parse the file or finds no triangles in it. Messages carry no path
         prefix.
     """
-    trimesh = require("trimesh", "OBJ, OFF and STL meshes")
+    trimesh = require(*NEEDS)
 
     file_type = path.suffix.lower().lstrip(".")
     try:

@@ -14,6 +14,9 @@ from ._sniff import check_content
 
 __all__ = ["read_points"]
 
+#: The optional module this format needs, and what for (`zeroset._extras.require`).
+NEEDS = ("pypcd4", "reading .pcd files")
+
 _DEFAULT_VIEWPOINT = (0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0)
 _MAX_HEADER_LINES = 64  # a PCD header has 11 lines, and a few comments
 _MAX_LINE = 1 << 16
@@ -47,7 +50,7 @@ def read_points(path: Path) -> dict[str, np.ndarray | None]:
         If the file is not valid PCD, its data is shorter than its header says, or it has
         no ``x y z`` fields. Messages carry no path prefix.
     """
-    pypcd4 = require("pypcd4", "reading .pcd files")
+    pypcd4 = require(*NEEDS)
 
     count = _check_layout(path)
     try:
