@@ -6,7 +6,7 @@ import distributed
 import numpy as np
 import pytest
 
-from zeroset import io, reconstruct, topology
+from zeroset import ReconstructionError, SurfaceWarning, io, reconstruct, topology
 from zeroset.cli import main
 from zeroset.synthetic import sample_tee, sample_torus
 from zeroset.tiles import _agree, plan_tiles, reconstruct_tiled
@@ -161,3 +161,31 @@ def test_tiles_read_from_a_file_with_a_crop_give_the_untiled_mesh(client, tmp_pa
     )
     _same_mesh(tiled.mesh, untiled.mesh)
     assert tiled.stats["input_points"] == untiled.stats["input_points"] - untiled.stats["cropped"]
+
+
+def _torus_and_scatter():
+    """A torus (x within 0.55 m of 0) and 300 points scattered over a cube from x = 10 m:
+    every one an outlier, so a tile holding only them fails to fit."""
+    rng = np.random.default_rng(7)
+    scatter = rng.uniform([10.0, -0.5, -0.5], [11.0, 0.5, 0.5], (300, 3))
+    return np.vstack([sample_torus(30_000, noise=0.003, rng=5).points, scatter])
+
+
+def test_a_failed_tile_stops_the_run_unless_gaps_are_allowed(client, tmp_path, capsys):
+    points = _torus_and_scatter()
+    with pytest.raises(ReconstructionError, match=r"tile \(1, 0, 0\) of 2x1x1: only"):
+        reconstruct_tiled(points, tiles=(2, 1, 1), client=client)
+    with pytest.warns(SurfaceWarning, match=r"left out, a gap in the mesh: tile \(1, 0, 0\)"):
+        tiled = reconstruct_tiled(points, tiles=(2, 1, 1), client=client, allow_gaps=True)
+    assert tiled.stats["tiles_failed"] == 1
+    assert topology.euler_characteristic(tiled.mesh) == 0 and tiled.stats["boundary_loops"] == 0
+    path = io.write_points(tmp_path / "cloud.ply", points)
+    command = ["reconstruct", str(path), "-o", str(tmp_path / "m.ply"), "--tiles", "2x1x1"]
+    command += ["--scheduler", client.scheduler.address]
+    assert main(command) == 1
+    error = capsys.readouterr().err
+    assert "tile (1, 0, 0) of 2x1x1" in error and not (tmp_path / "m.ply").exists()
+    assert main([*command, "--allow-gaps"]) == 0
+    assert (
+        "zeroset: warning: left out, a gap in the mesh: tile (1, 0, 0)" in capsys.readouterr().err
+    )

@@ -127,6 +127,11 @@ def _parser() -> argparse.ArgumentParser:
         help="with --tiles: worker processes of the local cluster (default: one per core)",
     )
     rec.add_argument(
+        "--allow-gaps",
+        action="store_true",
+        help="with --tiles: leave out a tile whose fit fails, with a warning (default: stop)",
+    )
+    rec.add_argument(
         "--report",
         type=Path,
         help="write parameters, counts and timings: .json, or .html with a 3D viewer",
@@ -443,8 +448,8 @@ def _run_reconstruct(args: argparse.Namespace) -> int:
     config = ReconstructionConfig().with_overrides(**_config_overrides(args))
     if args.tiles is not None:
         return _run_tiled(args, config)
-    if args.scheduler is not None or args.workers is not None:
-        raise InputError("--scheduler and --workers go with --tiles")
+    if args.scheduler is not None or args.workers is not None or args.allow_gaps:
+        raise InputError("--scheduler, --workers and --allow-gaps go with --tiles")
     several = len(args.input) > 1 or args.poses is not None
     reduce = {}
     if not (args.optimize or several):  # phase 2 takes every point the crop keeps
@@ -507,7 +512,12 @@ def _run_tiled(args: argparse.Namespace, config) -> int:
     parse_tiles(args.tiles)
     with dask_client(args.scheduler, args.workers) as client:
         result = reconstruct_tiled(
-            source, config, tiles=args.tiles, client=client, progress=not args.quiet
+            source,
+            config,
+            tiles=args.tiles,
+            client=client,
+            progress=not args.quiet,
+            allow_gaps=args.allow_gaps,
         )
     return _finish(
         result,

@@ -14,6 +14,7 @@ import logging
 import math
 import resource
 import time
+import warnings
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 
@@ -25,7 +26,7 @@ from ._progress import Stages
 from ._validate import as_points
 from .config import ReconstructionConfig
 from .contour import keyed_marching_cubes
-from .errors import InputError, ReconstructionError
+from .errors import InputError, ReconstructionError, SurfaceWarning
 from .jets import REACH, concatenate_jets, select_jets
 from .neighbours import spatial_order
 from .pipeline import (
@@ -41,6 +42,7 @@ from .pipeline import (
 )
 from .prepare import crop as inside
 from .refine import refine_mesh
+from .topology import is_consistently_oriented, is_edge_manifold
 from .types import Jets, Mesh, Parameters
 
 __all__ = [
@@ -154,13 +156,16 @@ def dask_client(scheduler: str | None = None, workers: int | None = None):
         with distributed.Client(scheduler) as client:
             yield client
         return
-    with distributed.LocalCluster(
-        n_workers=workers,
-        processes=True,
-        threads_per_worker=1,
-        dashboard_address=":0",
-        silence_logs=logging.CRITICAL,
-    ) as cluster, distributed.Client(cluster) as client:
+    with (
+        distributed.LocalCluster(
+            n_workers=workers,
+            processes=True,
+            threads_per_worker=1,
+            dashboard_address=":0",
+            silence_logs=logging.CRITICAL,
+        ) as cluster,
+        distributed.Client(cluster) as client,
+    ):
         yield client
 
 
@@ -172,6 +177,7 @@ def reconstruct_tiled(
     client=None,
     parameters: Parameters | None = None,
     progress: bool = False,
+    allow_gaps: bool = False,
     **overrides,
 ) -> TiledReconstruction:
     """Phase 1 (`zeroset.reconstruct`) in tiles run as Dask tasks, welded into one mesh.
@@ -194,10 +200,19 @@ def reconstruct_tiled(
         chose, the tiled mesh is the untiled one (same vertices and faces).
     progress : bool
         Show a progress bar over the tiles when stderr is a terminal.
+    allow_gaps : bool
+        When a tile's fit fails, leave its part of the mesh out with a `SurfaceWarning`
+        naming it, instead of raising.
 
     Returns
     -------
     TiledReconstruction
+
+    Raises
+    ------
+    ReconstructionError
+        If a tile's fit fails (the message names the tile) and not `allow_gaps`, or the
+        welded mesh is not edge-manifold and consistently oriented.
     """
     config = (config or ReconstructionConfig()).with_overrides(**overrides)
     if config.sample is not None or config.voxel_size is not None:
@@ -207,7 +222,13 @@ def reconstruct_tiled(
     if client is None:
         with dask_client() as local:
             return reconstruct_tiled(
-                source, config, tiles=tiles, client=local, parameters=parameters, progress=progress
+                source,
+                config,
+                tiles=tiles,
+                client=local,
+                parameters=parameters,
+                progress=progress,
+                allow_gaps=allow_gaps,
             )
     if not isinstance(source, (str, bytes)) and not hasattr(source, "__fspath__"):
         source = as_points(source)
@@ -234,8 +255,24 @@ def reconstruct_tiled(
         client.submit(_fit_tile, source, tile, offset, parameters, config, pure=False)
         for tile in plan
     ]
-    seams = [client.submit(_seam, fit, parameters, pure=False) for fit in fits]
-    flips, disagreement, groups = _agree(_gather(client, seams, "orienting", progress))
+    seams = _gather(
+        client,
+        [client.submit(_seam, fit, parameters, pure=False) for fit in fits],
+        "orienting",
+        progress,
+    )
+    failed = [
+        f"tile {seam['tile']} of {'x'.join(map(str, counts))}: {seam['failed']}"
+        for seam in seams
+        if seam is not None and "failed" in seam
+    ]
+    if failed and not allow_gaps:
+        raise ReconstructionError(
+            f"{'; '.join(failed)}; allow_gaps=True (--allow-gaps) keeps the other tiles"
+        )
+    for message in failed:
+        warnings.warn(f"left out, a gap in the mesh: {message}", SurfaceWarning, stacklevel=2)
+    flips, disagreement, groups = _agree(seams)
     timings["fit"] = time.perf_counter() - start
 
     start = time.perf_counter()
@@ -248,7 +285,7 @@ def reconstruct_tiled(
     timings["contour"] = time.perf_counter() - start
 
     start = time.perf_counter()
-    stats = {"input_points": n_points, "tiles": len(plan)}
+    stats = {"input_points": n_points, "tiles": len(plan), "tiles_failed": len(failed)}
     for piece in pieces:
         for key, value in piece["stats"].items():
             stats[key] = stats.get(key, 0) + value
@@ -274,6 +311,11 @@ def reconstruct_tiled(
         stats.update(refined)
         stats["jets"], stats["fit_support"] = jets.centres.shape[0], jets.support
         stats["fit_notes"] = "; ".join(jets.notes)
+    if not (is_edge_manifold(mesh.faces) and is_consistently_oriented(mesh.faces)):
+        raise ReconstructionError(
+            "the tiles' meshes welded into a mesh that is not edge-manifold and consistently "
+            "oriented: their seams disagree; run without tiles, or with fewer"
+        )
     mesh = Mesh(vertices=mesh.vertices + offset, faces=mesh.faces)
     stats.update(mesh_stats(mesh))
     timings["weld"] = time.perf_counter() - start
@@ -393,8 +435,8 @@ def _fit_tile(source, tile: Tile, offset, parameters, config) -> dict | None:
     stats: dict = {}
     try:
         fitted = fit_planes(local, viewpoints, parameters, config, stats, Stages((), show=False))
-    except ReconstructionError:
-        return None
+    except ReconstructionError as error:
+        return {"tile": tile, "failed": str(error)}
     return {"tile": tile, "local": local, "fitted": fitted, "stats": stats}
 
 
@@ -404,8 +446,8 @@ def _seam(fit: dict | None, parameters: Parameters) -> dict | None:
     The seam is the band within half the halo of the faces the tile shares with others:
     there both tiles hold the points with their whole neighbourhoods.
     """
-    if fit is None:
-        return None
+    if fit is None or "failed" in fit:
+        return fit and {"tile": fit["tile"].index, "failed": fit["failed"]}
     tile, fitted = fit["tile"], fit["fitted"]
     points, normals = fitted.points, fitted.orientation.normals
     component = fitted.orientation.component
@@ -474,7 +516,7 @@ def _agree(seams) -> tuple[list[dict], float | None, int]:
     groups : int
         Number of groups of nodes joined by seams that hold points a tile owns.
     """
-    live = [i for i, seam in enumerate(seams) if seam is not None]
+    live = [i for i, seam in enumerate(seams) if seam is not None and "failed" not in seam]
     flips: list[dict] = [{} for _ in seams]
     if not live:
         return flips, None, 0
@@ -571,7 +613,7 @@ def _contour_tile(
         "peak_mib": peak,
         "worker": worker,
     }
-    if fit is None:
+    if fit is None or "failed" in fit:
         return empty
     fitted, stats = fit["fitted"], dict(fit["stats"])
     sign = np.ones(fitted.orientation.n_components)
