@@ -41,7 +41,8 @@ STACK_REACH, STACK_COMPONENTS, STACK_SAMPLES = 6.0, 16, 20_000
 #: graph edge (whose weights are at least 1e-9), so that each anchor hangs from the root.
 _ANCHOR_WEIGHT = 1e-12
 
-_DIRECTIONS = np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], float)
+#: The six directions of the root rule, in the order of `component_extremes`.
+DIRECTIONS = np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], float)
 
 
 def orient_normals(
@@ -136,11 +137,10 @@ def orient_normals(
     component = component.astype(np.int64)
 
     extremes = component_extremes(centroids, component, n_components)
-    alignment = np.einsum("cdk,dk->cd", normals[extremes], _DIRECTIONS)
-    best = np.argmax(np.abs(alignment), axis=1)
+    best, sign = root_rule(np.einsum("cdk,dk->cd", normals[extremes], DIRECTIONS))
     roots = extremes[np.arange(n_components), best]
     root_sign = np.zeros(n)
-    root_sign[roots] = np.where(alignment[np.arange(n_components), best] >= 0.0, 1.0, -1.0)
+    root_sign[roots] = sign
 
     # One virtual node joined to every root makes a single tree of all components.
     virtual = sparse.coo_matrix(
@@ -231,6 +231,26 @@ def _unstack(centroids, normals, component, reach) -> np.ndarray:
     turn = np.ones(sizes.size)
     turn[taking] = np.where(sign == 0.0, 1.0, sign)
     return turn
+
+
+def root_rule(alignment: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The root of each component: of its points farthest along +x, -x, +y, -y, +z, -z,
+    the one whose normal is most parallel to its direction, oriented along it.
+
+    Parameters
+    ----------
+    alignment : (C, 6) float64
+        Cosine of each component's extreme normal with each direction (0 where none).
+
+    Returns
+    -------
+    direction : (C,) int64
+    sign : (C,) float64
+        +1 where that normal already points along its direction, -1 where it must turn.
+    """
+    direction = np.argmax(np.abs(alignment), axis=1)
+    cosine = alignment[np.arange(alignment.shape[0]), direction]
+    return direction, np.where(cosine >= 0.0, 1.0, -1.0)
 
 
 def _abrupt(agree, anchored, rows, cols) -> float:

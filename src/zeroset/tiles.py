@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ._extras import require
+from ._kernels.orientation import component_extremes
 from ._lattice import LIMIT
 from ._progress import Stages
 from ._validate import as_points
@@ -29,6 +30,7 @@ from .contour import keyed_marching_cubes
 from .errors import InputError, ReconstructionError, SurfaceWarning
 from .jets import REACH, concatenate_jets, select_jets
 from .neighbours import spatial_order
+from .orientation import DIRECTIONS, root_rule
 from .pipeline import (
     choose_parameters,
     data_support,
@@ -484,17 +486,15 @@ def _point_keys(points: np.ndarray) -> np.ndarray:
 
 def _extremes(centroids, normals, component, fitted) -> np.ndarray:
     """(C, 6, 2): per component and direction +x, -x, +y, -y, +z, -z, the coordinate of the
-    centroid of its owned point farthest that way and that point's normal's cosine with the
-    direction (-inf for a component with no owned point), as the orientation's roots."""
+    centroid of its owned point farthest that way (`component_extremes`, the untiled
+    orientation's choice) and that point's normal's cosine with the direction (-inf for a
+    component with no owned point), as the orientation's roots."""
     out = np.full((fitted.orientation.n_components, 6, 2), -np.inf)
-    for d in range(6):
-        axis, sign = d // 2, 1.0 - 2.0 * (d % 2)
-        coordinate = sign * centroids[:, axis]
-        order = np.lexsort((coordinate, component))
-        last = np.r_[component[order][1:] != component[order][:-1], True] if order.size else order
-        rows = order[last]
-        out[component[rows], d, 0] = coordinate[rows]
-        out[component[rows], d, 1] = sign * normals[rows, axis]
+    extremes = component_extremes(centroids, component, fitted.orientation.n_components)
+    found = extremes >= 0
+    point = extremes[found]
+    out[found, 0] = np.einsum("ik,ik->i", centroids[point], DIRECTIONS[np.nonzero(found)[1]])
+    out[found, 1] = np.einsum("ik,ik->i", normals[point], DIRECTIONS[np.nonzero(found)[1]])
     return out
 
 
@@ -582,10 +582,8 @@ def _root_signs(extremes, sign, group) -> None:
         if not found.any():
             continue
         alignment = np.where(found, extremes[members[best], np.arange(6), 1], 0.0)
-        alignment = alignment * sign[members[best]]
-        d = int(np.argmax(np.abs(alignment)))
-        if alignment[d] < 0.0:
-            sign[members] *= -1.0
+        _, turn = root_rule((alignment * sign[members[best]])[None])
+        sign[members] *= turn[0]
 
 
 def _contour_tile(

@@ -11,10 +11,10 @@ all triangles (Ericson 2005, §6.3 and §6.4), up to rounding.
 
 import numpy as np
 
+from ..neighbours import spatial_order
 from ._jit import jit, jit_parallel, prange
 
 LEAF_SIZE = 4
-_MORTON_BITS = 21
 
 
 @jit
@@ -180,26 +180,6 @@ def _closest_point_rows(
         distance[i] = np.sqrt(best)
 
 
-def morton_order(points, lo, hi):
-    """Return the permutation (N,) int64 that sorts (N, 3) `points` along a Z-order curve."""
-    scale = (2**_MORTON_BITS - 1) / np.maximum(hi - lo, 1e-300)
-    cells = np.clip((points - lo) * scale, 0, 2**_MORTON_BITS - 1).astype(np.uint64)
-    code = np.zeros(points.shape[0], dtype=np.uint64)
-    for axis in range(3):
-        x = cells[:, axis]
-        # Spread the 21 bits of x to every third bit.
-        for shift, mask in (
-            (32, 0x1F00000000FFFF),
-            (16, 0x1F0000FF0000FF),
-            (8, 0x100F00F00F00F00F),
-            (4, 0x10C30C30C30C30C3),
-            (2, 0x1249249249249249),
-        ):
-            x = (x | (x << np.uint64(shift))) & np.uint64(mask)
-        code |= x << np.uint64(axis)
-    return np.argsort(code, kind="stable").astype(np.int64)
-
-
 def build_hierarchy(vertices, faces, degenerate):
     """Return the hierarchy over (F, 3) `faces`: triangles in leaf order and node boxes.
 
@@ -249,7 +229,7 @@ def closest_points_on_mesh(points, vertices, faces, degenerate):
     triangles, face_of_slot, boxes, leaf_start, leaf_count = build_hierarchy(
         vertices, faces, degenerate
     )
-    query = morton_order(points, points.min(axis=0), points.max(axis=0))
+    query = spatial_order(points)
     n = points.shape[0]
     closest = np.zeros((n, 3))
     slot = np.zeros(n, dtype=np.int64)
