@@ -76,3 +76,35 @@ def test_jets_near_a_second_wall_fit_their_own():
     # and the mesh covers both walls: true points on them lie near it
     far = points_to_mesh_distance(on_wall[::20], result.mesh)
     assert np.quantile(far, 0.95) < 0.005
+
+
+def pipe_rack(n, seed):
+    """Eight open pipes (radius 0.15 m, 2 m long, 2 mm noise), 0.2 m apart side by side:
+    four along x at z = 0, four along y at z = 1, crossing in plan like a pipe rack."""
+    from zeroset.synthetic import sample_cylinder
+
+    rng = np.random.default_rng(seed)
+    pipes = []
+    for k in range(8):
+        x, y, z = sample_cylinder(n // 8, radius=0.15, length=2.0, noise=0.002, rng=rng).points.T
+        across = (k % 4) * 0.5 - 0.75
+        pipes.append(np.column_stack([z, x + across, y] if k < 4 else [x + across, z, y + 1.0]))
+    return np.vstack(pipes)
+
+
+def test_pipes_side_by_side_all_face_outward():
+    # From the far side of a pipe, the nearest point of the pipe beside it lies beyond the
+    # pipe's own near side; only the facing sides may vote on how the two are oriented (2
+    # of the 8 pipes were turned inward, and webs drawn between them, before).
+    result = reconstruct(pipe_rack(64_000, 2))
+    mesh = result.mesh
+    count, label = topology.face_components(mesh.faces, mesh.n_vertices)
+    assert count == 8 and result.stats["orientation_turned"] == 0
+    corners = mesh.vertices[mesh.faces]
+    centre = corners.mean(axis=1)
+    area = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+    for piece in range(count):
+        faces = label == piece
+        across = [1, 2] if np.ptp(centre[faces, 0]) > np.ptp(centre[faces, 1]) else [0, 2]
+        radial = centre[faces][:, across] - np.median(centre[faces][:, across], axis=0)
+        assert np.all(np.einsum("ij,ij->i", radial, area[faces][:, across]) > 0)

@@ -6,9 +6,10 @@ import distributed
 import numpy as np
 import pytest
 
+from tests.test_sheets import pipe_rack
 from zeroset import ReconstructionError, SurfaceWarning, io, reconstruct, topology
 from zeroset.cli import main
-from zeroset.synthetic import sample_tee, sample_torus
+from zeroset.synthetic import sample_tee, sample_torus, scan_pipe
 from zeroset.tiles import _agree, plan_tiles, reconstruct_tiled
 
 
@@ -43,14 +44,20 @@ def _wavy_sheet(n, seed):
     "points, tiles, closed",
     [
         (sample_torus(30_000, noise=0.005, rng=3).points, (3, 3, 3), True),
+        (sample_torus(30_000, noise=0.005, rng=3).points, (2, 2, 2), True),
         (sample_tee(40_000, rng=4).points, (3, 3, 3), False),
         (_wavy_sheet(40_000, 1), (4, 4, 1), False),
+        (scan_pipe(radius=0.35, rotation_step=4.0, offset=0.05, rng=5).points, (2, 2, 2), False),
+        (scan_pipe(radius=0.35, rotation_step=4.0, offset=0.05, rng=5).points, (3, 3, 3), False),
+        (pipe_rack(64_000, 2), (3, 3, 1), False),
     ],
-    ids=["torus", "tee", "sheet"],
+    ids=["torus", "torus-2", "tee", "sheet", "sparse-scan-2", "sparse-scan-3", "rack"],
 )
 def test_tiled_mesh_is_the_untiled_mesh(client, points, tiles, closed):
+    # With default options: the tiles take the parameters reconstruct chooses.
     untiled = reconstruct(points)
-    tiled = reconstruct_tiled(points, tiles=tiles, client=client, parameters=untiled.parameters)
+    tiled = reconstruct_tiled(points, tiles=tiles, client=client)
+    assert tiled.parameters == untiled.parameters
     _same_mesh(tiled.mesh, untiled.mesh)
     assert tiled.stats["tiles"] == np.prod(tiles) and tiled.stats["seam_disagreement"] == 0.0
     if tiles == (4, 4, 1):

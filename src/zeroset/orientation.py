@@ -188,10 +188,11 @@ def _unstack(centroids, normals, component, reach) -> np.ndarray:
     surface there, or breaks the sheets where a cube's corner lies past the middle. Facing
     each other (an air gap) or away (the two faces of a slab), they agree in sign across
     it, and closed surfaces already do either. Points are paired with the nearest point of
-    another component within their `reach` (N,); each pair whose step d from i to j crosses
-    both tangent planes (|cosine| to each normal above `ON_ONE_SURFACE`; a step along one
-    surface, between two pieces of it, says nothing) votes sign(n_i . d) sign(-n_j . d),
-    and the components are turned from the largest, along the strongest votes, so that
+    another component within their `reach` (N,), where that pairing is mutual (so the two
+    face each other); each pair whose step d from i to j crosses both tangent planes
+    (|cosine| to each normal above `ON_ONE_SURFACE`; a step along one surface, between two
+    pieces of it, says nothing) votes sign(n_i . d) sign(-n_j . d), and the components are
+    turned from the largest, along the strongest votes, so that
     every vote followed is positive.
     """
     sizes = np.bincount(component)
@@ -205,7 +206,8 @@ def _unstack(centroids, normals, component, reach) -> np.ndarray:
         if points.size > STACK_SAMPLES:
             points = np.sort(rng.choice(points, STACK_SAMPLES, replace=False))
         members.append(points)
-    votes = np.zeros((taking.size, taking.size))  # between the components taking part
+    # Each point's nearest point of another component within its reach.
+    partner, gap = np.full(component.size, -1), np.full(component.size, np.inf)
     for b, own in enumerate(members):
         others = np.concatenate([m for a, m in enumerate(members) if a != b])
         if others.size == 0:
@@ -213,13 +215,22 @@ def _unstack(centroids, normals, component, reach) -> np.ndarray:
         distance, nearest = build_tree(centroids[own]).query(
             centroids[others], distance_upper_bound=float(reach[others].max()), workers=-1
         )
-        found = distance <= reach[others]
-        i, j = others[found], own[nearest[found]]
-        cos_i, cos_j = step_cosines(centroids[j] - centroids[i], normals[i], normals[j])
-        across = (np.abs(cos_i) > ON_ONE_SURFACE) & (np.abs(cos_j) > ON_ONE_SURFACE)
-        # n_i . d > 0: i faces j; -n_j . d > 0: j faces i; facing alike agrees
-        np.add.at(votes, (slot[component[i[across]]], b), -np.sign(cos_i * cos_j)[across])
-    votes += votes.T
+        closer = (distance <= reach[others]) & (distance < gap[others])
+        partner[others[closer]], gap[others[closer]] = own[nearest[closer]], distance[closer]
+    # Only mutual pairs face each other across the gap: from the far side of a pipe, the
+    # nearest point of the pipe beside it lies beyond the pipe's own near side.
+    i = np.flatnonzero(partner >= 0)
+    i = i[partner[partner[i]] == i]
+    j = partner[i]
+    cos_i, cos_j = step_cosines(centroids[j] - centroids[i], normals[i], normals[j])
+    across = (np.abs(cos_i) > ON_ONE_SURFACE) & (np.abs(cos_j) > ON_ONE_SURFACE)
+    # n_i . d > 0: i faces j; -n_j . d > 0: j faces i; facing alike agrees
+    votes = np.zeros((taking.size, taking.size))  # between the components taking part
+    np.add.at(
+        votes,
+        (slot[component[i[across]]], slot[component[j[across]]]),
+        -np.sign(cos_i * cos_j)[across],
+    )
     sign = np.zeros(taking.size)
     sign[0] = 1.0
     while True:

@@ -61,6 +61,10 @@ HALO_RADII = 8.0
 HALO_CUBES = 2
 #: Points per tile that ``tiles="auto"`` aims at.
 AUTO_TILE_POINTS = 2_000_000
+#: Clouds of at most this many points (inside the crop) get their parameters from all of
+#: them in one task, as `zeroset.reconstruct` chooses them, so that the tiled mesh is the
+#: untiled one; a larger cloud takes the estimate of its median tile.
+WHOLE_CLOUD_POINTS = 5_000_000
 #: Fewest points a tile must hold to be reconstructed; emptier tiles hold no surface.
 MIN_TILE_POINTS = 32
 
@@ -198,8 +202,10 @@ def reconstruct_tiled(
     client : distributed.Client, optional
         Where the tasks run; a local cluster of one worker process per core by default.
     parameters : Parameters, optional
-        Use these instead of estimating them. Given the parameters `zeroset.reconstruct`
-        chose, the tiled mesh is the untiled one (same vertices and faces).
+        Use these instead of estimating them. By default a cloud of at most
+        ``WHOLE_CLOUD_POINTS`` gets those `zeroset.reconstruct` chooses, from all its
+        points, and the tiled mesh is the untiled one (same vertices and faces); a larger
+        one gets the estimate of its median tile.
     progress : bool
         Show a progress bar over the tiles when stderr is a terminal.
     allow_gaps : bool
@@ -246,7 +252,11 @@ def reconstruct_tiled(
     timings["bounds"] = time.perf_counter() - start
     if parameters is None:
         start = time.perf_counter()
-        parameters = _estimate(client, source, config, low, high, offset, counts, progress)
+        if n_points <= WHOLE_CLOUD_POINTS:
+            task = client.submit(_estimate_whole, source, low, high, offset, config, pure=False)
+            parameters = task.result()
+        else:
+            parameters = _estimate(client, source, config, low, high, offset, counts, progress)
         timings["parameters"] = time.perf_counter() - start
     # The blended jets reach further than the planes: see zeroset.jets.REACH.
     reach = max(HALO_RADII, REACH) if config.surface == "jets" else HALO_RADII
@@ -392,6 +402,13 @@ def _bounds(source, crop) -> tuple[np.ndarray, np.ndarray, int]:
     from . import io
 
     return io.point_bounds(source, crop=crop)
+
+
+def _estimate_whole(source, low, high, offset, config) -> Parameters:
+    """Parameters of every point (a Dask task): those `zeroset.reconstruct` chooses."""
+    points, _ = _read(source, np.r_[low, high], config.crop)
+    local = points - offset
+    return choose_parameters(local[spatial_order(local)], config)
 
 
 def _estimate(client, source, config, low, high, offset, counts, progress) -> Parameters:
