@@ -46,12 +46,13 @@ def _wavy_sheet(n, seed):
         (sample_torus(30_000, noise=0.005, rng=3).points, (3, 3, 3), True),
         (sample_torus(30_000, noise=0.005, rng=3).points, (2, 2, 2), True),
         (sample_tee(40_000, rng=4).points, (3, 3, 3), False),
+        (sample_tee(40_000, rng=4).points, (2, 2, 2), False),
         (_wavy_sheet(40_000, 1), (4, 4, 1), False),
         (scan_pipe(radius=0.35, rotation_step=4.0, offset=0.05, rng=5).points, (2, 2, 2), False),
         (scan_pipe(radius=0.35, rotation_step=4.0, offset=0.05, rng=5).points, (3, 3, 3), False),
         (pipe_rack(64_000, 2), (3, 3, 1), False),
     ],
-    ids=["torus", "torus-2", "tee", "sheet", "sparse-scan-2", "sparse-scan-3", "rack"],
+    ids=["torus", "torus-2", "tee", "tee-2", "sheet", "sparse-scan-2", "sparse-scan-3", "rack"],
 )
 def test_tiled_mesh_is_the_untiled_mesh(client, points, tiles, closed):
     # With default options: the tiles take the parameters reconstruct chooses.
