@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from zeroset import MissingExtraError, io
+from zeroset import InputError, MissingExtraError, io
 from zeroset._extras import EXTRAS
 from zeroset.cli import main
 from zeroset.types import Mesh
@@ -118,3 +118,10 @@ def test_a_missing_extra_stops_the_run_before_any_work(
     (line,) = capsys.readouterr().err.strip().splitlines()  # no warning of a run: none ran
     assert line.endswith(f"needs the '{extra}' extra: pip install 'zeroset[{extra}]'")
     assert sorted(path.name for path in tmp_path.iterdir()) == ["cloud.ply"]
+
+
+def test_a_ply_mesh_without_end_header_is_refused_by_name(tmp_path):
+    path = tmp_path / "cut.ply"
+    path.write_text("ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\n")
+    with pytest.raises(InputError, match=r"cut.ply: not a valid PLY file \(no 'end_header'"):
+        io.read_mesh(path)

@@ -192,8 +192,8 @@ def _unstack(centroids, normals, component, reach) -> np.ndarray:
     face each other); each pair whose step d from i to j crosses both tangent planes
     (|cosine| to each normal above `ON_ONE_SURFACE`; a step along one surface, between two
     pieces of it, says nothing) votes sign(n_i . d) sign(-n_j . d), and the components are
-    turned from the largest, along the strongest votes, so that
-    every vote followed is positive.
+    turned from the largest, along the strongest votes, so that every vote followed is
+    positive.
     """
     sizes = np.bincount(component)
     taking = np.argsort(-sizes, kind="stable")[:STACK_COMPONENTS]

@@ -306,6 +306,11 @@ def reconstruct_tiled(
     stats["tile_grid"] = [int(c) for c in counts]
     stats["tile_components_flipped"] = sum(len(flip) for flip in flips)
     mesh = repair(_weld(pieces), parameters, config, stats)
+    if not (is_edge_manifold(mesh.faces) and is_consistently_oriented(mesh.faces)):
+        raise ReconstructionError(
+            "the tiles' meshes welded into a mesh that is not edge-manifold and consistently "
+            "oriented: their seams disagree; run without tiles, or with fewer"
+        )
     if config.rim == "data":
         mesh = trim_rim(
             mesh,
@@ -323,11 +328,6 @@ def reconstruct_tiled(
         stats.update(refined)
         stats["jets"], stats["fit_support"] = jets.centres.shape[0], jets.support
         stats["fit_notes"] = "; ".join(jets.notes)
-    if not (is_edge_manifold(mesh.faces) and is_consistently_oriented(mesh.faces)):
-        raise ReconstructionError(
-            "the tiles' meshes welded into a mesh that is not edge-manifold and consistently "
-            "oriented: their seams disagree; run without tiles, or with fewer"
-        )
     mesh = Mesh(vertices=mesh.vertices + offset, faces=mesh.faces)
     stats.update(mesh_stats(mesh))
     timings["weld"] = time.perf_counter() - start
@@ -465,8 +465,10 @@ def _seam(fit: dict | None, parameters: Parameters) -> dict | None:
     The seam is the band within half the halo of the faces the tile shares with others:
     there both tiles hold the points with their whole neighbourhoods.
     """
-    if fit is None or "failed" in fit:
-        return fit and {"tile": fit["tile"].index, "failed": fit["failed"]}
+    if fit is None:
+        return None
+    if "failed" in fit:
+        return {"tile": fit["tile"].index, "failed": fit["failed"]}
     tile, fitted = fit["tile"], fit["fitted"]
     points, normals = fitted.points, fitted.orientation.normals
     component = fitted.orientation.component

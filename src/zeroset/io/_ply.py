@@ -86,8 +86,10 @@ def read_mesh(path: Path) -> tuple[np.ndarray, np.ndarray]:
         If the file is not valid PLY or holds no triangles; messages carry no path prefix.
     """
     header = _header(path)
+    if header is None:
+        raise InputError("not a valid PLY file (no 'end_header' line)")
     _check_length(path, header)
-    face = next((e for e in header.elements if e.name == "face"), None) if header else None
+    face = next((e for e in header.elements if e.name == "face"), None)
     names = [name for name, _, is_list, _ in face.properties if is_list] if face else []
     name = next((n for n in ("vertex_indices", "vertex_index") if n in names), None)
     if name is None:
