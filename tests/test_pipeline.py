@@ -160,13 +160,16 @@ def test_every_stage_is_timed(pipe):
     assert set(result.timings) == {
         "prepare",
         "parameters",
+        "cell means",
         "neighbours",
+        "radii",
         "outliers",
         "tangent planes",
         "orientation",
         "local fits",
         "signed distance",
         "contour",
+        "repair",
         "rim",
         "refine",
     }

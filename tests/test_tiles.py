@@ -9,7 +9,7 @@ import pytest
 from tests.test_sheets import pipe_rack
 from zeroset import ReconstructionError, SurfaceWarning, io, reconstruct, topology
 from zeroset.cli import main
-from zeroset.synthetic import sample_tee, sample_torus, scan_pipe
+from zeroset.synthetic import sample_sphere, sample_tee, sample_torus, scan_pipe
 from zeroset.tiles import _agree, plan_tiles, reconstruct_tiled
 
 
@@ -37,6 +37,16 @@ def _wavy_sheet(n, seed):
     rng = np.random.default_rng(seed)
     xy = rng.uniform(-1.0, 1.0, (n, 2))
     z = 0.15 * np.sin(3 * xy[:, 0]) * np.cos(2 * xy[:, 1]) + rng.normal(0.0, 0.003, n)
+    return np.column_stack([xy, z])
+
+
+def _sheet_with_a_sparse_strip(n, seed):
+    """A wavy sheet whose strip x > 0.3 holds a seventh of the density elsewhere: there the
+    neighbourhoods of a count of points reach further than the halo allows for."""
+    rng = np.random.default_rng(seed)
+    xy = rng.uniform(-1.0, 1.0, (n, 2))
+    xy = xy[(xy[:, 0] <= 0.3) | (rng.random(n) < 0.15)]
+    z = 0.05 * np.sin(3 * xy[:, 0]) + rng.normal(0.0, 0.002, xy.shape[0])
     return np.column_stack([xy, z])
 
 
@@ -197,3 +207,28 @@ def test_a_failed_tile_stops_the_run_unless_gaps_are_allowed(client, tmp_path, c
     assert (
         "zeroset: warning: left out, a gap in the mesh: tile (1, 0, 0)" in capsys.readouterr().err
     )
+
+
+def test_tiles_oriented_towards_a_sensor_agree_with_the_untiled_run(client):
+    # One sensor at the sphere's centre: the normals point inward, in every tile.
+    points = sample_sphere(20_000, noise=0.003, rng=6).points
+    untiled = reconstruct(points, viewpoint=(0.0, 0.0, 0.0)).mesh
+    tiled = reconstruct_tiled(points, tiles=(2, 2, 2), client=client, viewpoint=(0.0, 0.0, 0.0))
+    for mesh in (tiled.mesh, untiled):
+        assert topology.boundary_loops(mesh.faces) == []
+        assert topology.is_edge_manifold(mesh.faces)
+        assert topology.is_consistently_oriented(mesh.faces)
+        corners = mesh.vertices[mesh.faces]
+        normals = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+        assert np.all(np.einsum("ij,ij->i", normals, corners.mean(axis=1)) < 0.0)
+        assert np.abs(np.linalg.norm(mesh.vertices, axis=1) - 1.0).max() < 0.01
+    assert tiled.stats["viewpoints_untrusted"] == 0 and tiled.stats["orientation_components"] == 1
+
+
+def test_tiles_whose_neighbourhoods_reach_further_widen_their_halos(client):
+    points = _sheet_with_a_sparse_strip(40_000, 0)
+    untiled = reconstruct(points)
+    tiled = reconstruct_tiled(points, tiles=(4, 4, 1), client=client)
+    assert tiled.stats["tiles_grown"] > 0 and tiled.stats["tiles_failed"] == 0
+    assert tiled.stats["seam_vertex_gap"] < 1e-12
+    _same_mesh(tiled.mesh, untiled.mesh)

@@ -1,4 +1,4 @@
-"""Per-stage wall-clock timing with an optional progress bar on a terminal."""
+"""A run's record: wall-clock seconds and counts per stage, with an optional progress bar."""
 
 from __future__ import annotations
 
@@ -8,14 +8,18 @@ from contextlib import contextmanager
 
 from tqdm.auto import tqdm
 
-__all__ = ["Stages"]
+__all__ = ["Stages", "add_counts"]
 
 
 class Stages:
-    """Time named stages; show a bar on stderr when `show` is true and stderr is a terminal."""
+    """Time named stages; show a bar on stderr when `show` is true and stderr is a terminal.
+
+    `run` also gathers what each stage counted: ``counts`` holds their sum (`add_counts`).
+    """
 
     def __init__(self, names: tuple[str, ...], *, show: bool) -> None:
         self.timings: dict[str, float] = {}
+        self.counts: dict = {}
         self._bar = tqdm(
             total=len(names),
             disable=not (show and sys.stderr.isatty()),
@@ -35,5 +39,26 @@ class Stages:
             self.timings[name] = time.perf_counter() - start
             self._bar.update()
 
+    def run(self, name: str, stage, *args, **kwargs):
+        """Call ``stage(*args, **kwargs)``, which returns ``(result, counts)``, as stage
+        `name`; add its counts to ``counts`` and return its result."""
+        with self.stage(name):
+            result, counts = stage(*args, **kwargs)
+        add_counts(self.counts, counts)
+        return result
+
     def close(self) -> None:
         self._bar.close()
+
+
+def add_counts(total: dict, counts: dict) -> dict:
+    """Add `counts` to `total` in place and return it: counts of one name add up, and those
+    named ``widest_*`` keep the largest."""
+    for name, value in counts.items():
+        if name not in total:
+            total[name] = value
+        elif name.startswith("widest_"):
+            total[name] = max(total[name], value)
+        else:
+            total[name] += value
+    return total

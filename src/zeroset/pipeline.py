@@ -1,9 +1,22 @@
-"""The phase-1 pipeline: prepare, estimate parameters, tangent planes, orient, distance, contour."""
+"""The phase-1 pipeline: the order of the stages, and each stage as a function.
+
+One sequence serves one machine and tiles (`zeroset.tiles`), in three parts:
+
+1. `fit`: "cell means", "neighbours", "radii", "outliers", "tangent planes",
+   "orientation", "local fits" (the tiles then agree on their normals' signs);
+2. "signed distance" (`distance_field`) and "contour" (the tiles contour the cubes they
+   own and weld the pieces);
+3. `finish`: "repair", "rim", "refine".
+
+`reconstruct` runs "prepare" and "parameters" before them and "optimize" after. Every
+stage is a function of arrays that returns its result and a dict of counts; the run adds
+the counts up (`zeroset._progress.add_counts`) and times each stage under its name.
+"""
 
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 
 import numpy as np
 
@@ -16,6 +29,7 @@ from .density import (
     BRIDGE_LENGTH,
     BRIDGE_REACH,
     BRIDGE_STEP,
+    SMOOTH_K,
     gap_bridges,
     point_radii,
     range_noise,
@@ -45,20 +59,23 @@ from .repair import (
     split_nonmanifold_vertices,
 )
 from .rim import no_empty_ball, trim_to_data
-from .types import DistanceField, Jets, Mesh, Orientation, Parameters, TangentPlanes
+from .types import DistanceField, Jets, Mesh, Neighbourhoods, Orientation, Parameters, TangentPlanes
 
 __all__ = ["Reconstruction", "reconstruct"]
 
 STAGES = (
     "prepare",
     "parameters",
+    "cell means",
     "neighbours",
+    "radii",
     "outliers",
     "tangent planes",
     "orientation",
     "local fits",
     "signed distance",
     "contour",
+    "repair",
     "rim",
     "refine",
 )
@@ -185,90 +202,45 @@ def reconstruct(
     0
     """
     config = (config or ReconstructionConfig()).with_overrides(**overrides)
-    points = as_points(points)
-    if viewpoints is not None:
-        viewpoints = as_viewpoints(viewpoints, points.shape[0])
-        if viewpoints.shape != points.shape:
-            raise InputError(f"viewpoints must match points {points.shape}; got {viewpoints.shape}")
-    stats: dict = {"input_points": points.shape[0]}
-    names = tuple(
-        s
-        for s in STAGES
-        if (config.surface == "jets" or s not in JET_STAGES)
-        and (config.rim == "data" or s not in RIM_STAGES)
-    )
-    stages = Stages(names + ((OPTIMIZE_STAGE,) if optimize else ()), show=progress)
+    points, viewpoints = _checked(points, viewpoints)
+    stages = Stages(stage_names(config, optimize), show=progress)
     try:
-        with stages.stage("prepare"):
-            rows = _prepare(points, config, stats)
-            kept = points[rows]
-            _check_spread(kept)
-            offset = (kept.min(axis=0) + kept.max(axis=0)) / 2.0
-            local = kept - offset
-            if viewpoints is not None:
-                viewpoints = viewpoints[rows] - offset
-            elif config.viewpoint is not None:
-                viewpoints = np.asarray(config.viewpoint, dtype=np.float64) - offset
-        with stages.stage("parameters"):
-            parameters = choose_parameters(local, config)
-        fitted = fit_planes(local, viewpoints, parameters, config, stats, stages)
-        jets = oriented_jets(fitted, fitted.orientation.normals)
-        field_, bridges = distance_field(
-            local,
+        cloud = stages.run("prepare", prepare_points, points, viewpoints, config)
+        parameters = stages.run("parameters", choose_parameters, cloud.local, config)
+        fitted = fit(cloud.local, cloud.viewpoints, parameters, config, stages)
+        normals = fitted.orientation.normals
+        jets = oriented_jets(fitted, normals)
+        field_, bridges = stages.run(
+            "signed distance",
+            distance_field,
+            cloud.local,
             fitted,
-            fitted.orientation.normals,
+            normals,
+            jets,
             parameters,
-            stats,
-            stages,
-            config=config,
-            jets=jets,
+            config,
         )
-        with stages.stage("contour"):
-            if config.contour == "cubes":
-                mesh = method_of_cubes(
-                    field_, fitted.points, fitted.planes.centroids, fitted.orientation.normals
-                )
-            else:
-                mesh = marching_cubes(field_)
-            mesh = repair(mesh, parameters, config, stats)
-        if config.rim == "data":
-            with stages.stage("rim"):
-                mesh = trim_rim(
-                    mesh, *data_support(fitted, bridges, parameters), parameters, config, stats
-                )
-        if jets is not None:
-            with stages.stage("refine"):
-                mesh, counts = refine_mesh(
-                    mesh, jets, noise=parameters.noise, levels=config.refine_levels
-                )
-                stats.update(counts)
-        initial_mesh = Mesh(vertices=mesh.vertices + offset, faces=mesh.faces)
+        mesh = stages.run("contour", contour, field_, fitted, normals, config)
+        support = data_support(fitted, bridges, parameters)
+        mesh = finish(mesh, support, jets, parameters, config, stages)
+        initial_mesh = Mesh(vertices=mesh.vertices + cloud.offset, faces=mesh.faces)
         optimization = None
         if optimize:
-            with stages.stage(OPTIMIZE_STAGE):
-                if config.crop is not None:  # phase 2 takes every point the crop keeps
-                    points = points[crop(points, config.crop[:3], config.crop[3:])]
-                optimization = optimize_mesh(
-                    mesh,
-                    points - offset,
-                    c_rep=config.c_rep,
-                    kappa=config.kappa,
-                    rng=config.seed,
-                    progress=progress,
-                )
-                mesh = optimization.mesh
-                stats["phase2_points"] = optimization.stats["points_used"]
-                stats["phase2_points_ignored"] = optimization.stats["points_ignored"]
+            optimization = stages.run(
+                OPTIMIZE_STAGE, optimize_surface, mesh, points, cloud.offset, config, progress
+            )
+            mesh = optimization.mesh
     finally:
         stages.close()
-    mesh = Mesh(vertices=mesh.vertices + offset, faces=mesh.faces)
-    stats.update(mesh_stats(mesh))
+    mesh = Mesh(vertices=mesh.vertices + cloud.offset, faces=mesh.faces)
+    stats = {"input_points": points.shape[0], **stages.counts}
+    stats.update(fit_stats(fitted) | jet_stats(jets) | mesh_stats(mesh))
     warn_surface_changes(stats, config)
     return Reconstruction(
         mesh=mesh,
         initial_mesh=initial_mesh,
         optimization=optimization,
-        offset=offset,
+        offset=cloud.offset,
         points=fitted.points,
         parameters=parameters,
         planes=fitted.planes,
@@ -281,21 +253,124 @@ def reconstruct(
     )
 
 
-def choose_parameters(local: np.ndarray, config: ReconstructionConfig) -> Parameters:
-    """Stage "parameters": `zeroset.parameters.estimate_parameters` with `config`'s knobs."""
-    return estimate_parameters(
-        local,
-        k=config.radius_k,
-        quantile=config.quantile,
-        noise_factor=config.noise_factor,
-        cube_factor=config.cube_factor,
-        k_max=config.k_max,
-        rho_delta=config.rho_delta,
-        cube_size=config.cube_size,
-        averaging_cell=config.averaging_cell,
-        min_neighbours=config.min_neighbours,
-        rng=config.seed,
+def stage_names(config: ReconstructionConfig, optimize: bool = False) -> tuple[str, ...]:
+    """The stages a run of `config` goes through, in order."""
+    names = tuple(
+        s
+        for s in STAGES
+        if (config.surface == "jets" or s not in JET_STAGES)
+        and (config.rim == "data" or s not in RIM_STAGES)
     )
+    return names + ((OPTIMIZE_STAGE,) if optimize else ())
+
+
+def fit(local, viewpoints, parameters: Parameters, config, stages: Stages) -> FittedPlanes:
+    """Stages "cell means" to "local fits" on points (N, 3) in the local frame.
+
+    `viewpoints` are the points' sensor positions, (N, 3) or one (3,), or None.
+    """
+    cells = stages.run("cell means", average_in_cells, local, viewpoints, parameters)
+    neighbours = stages.run("neighbours", find_neighbours, cells.points, config)
+    reach = stages.run("radii", measure_radii, cells, neighbours, parameters, config)
+    cells, neighbours, reach = stages.run(
+        "outliers", drop_sparse_points, cells, neighbours, reach, parameters, config
+    )
+    planes = stages.run(
+        "tangent planes", fit_tangent_planes, cells.points, neighbours, reach, config
+    )
+    orientation = stages.run(
+        "orientation", orient, planes, neighbours, reach, cells.viewpoints, config
+    )
+    jets = None
+    if config.surface == "jets":
+        jets = stages.run(
+            "local fits", fit_local_surfaces, local, cells, planes, parameters, config
+        )
+    return FittedPlanes(
+        points=cells.points,
+        radii=reach.radii,
+        sectors=reach.sectors,
+        planes=planes,
+        orientation=orientation,
+        jets=jets,
+        extent=reach.extent,
+        noise_model=reach.noise_model,
+    )
+
+
+def finish(mesh: Mesh, support, jets, parameters: Parameters, config, stages: Stages) -> Mesh:
+    """Stages "repair", "rim" and "refine" on a contoured mesh in the local frame, with the
+    `DataSupport` the rim is cut back to and the oriented `jets` (or None) it is refined on."""
+    mesh = stages.run("repair", repair, mesh, parameters, config)
+    if config.rim == "data":
+        mesh = stages.run("rim", trim_rim, mesh, support, parameters, config)
+    if jets is not None:
+        mesh = stages.run("refine", refine, mesh, jets, parameters, config)
+    return mesh
+
+
+# ------------------------------------------------------------------------------ results
+
+
+@dataclass(frozen=True, eq=False)
+class LocalCloud:
+    """The points a run works on, in its local frame ``original = local + offset``.
+
+    Attributes
+    ----------
+    local : (N, 3) float64
+        Cropped, sampled and in spatial order.
+    offset : (3,) float64
+    viewpoints : (N, 3) or (3,) float64, or None
+        Their sensor positions (rows of NaN where not known), or one for all, in the frame.
+    """
+
+    local: np.ndarray
+    offset: np.ndarray
+    viewpoints: np.ndarray | None
+
+
+@dataclass(frozen=True, eq=False)
+class Cells:
+    """The points the tangent planes are fitted to: one per averaging cell.
+
+    Attributes
+    ----------
+    points : (M, 3) float64
+        The mean of each cell's points.
+    cell : (N,) int64
+        Row of `points` each point of the run belongs to, -1 where its cell was dropped.
+    viewpoints : (M, 3) or (3,) float64, or None
+        Each cell's sensor position, or one for all.
+    """
+
+    points: np.ndarray
+    cell: np.ndarray
+    viewpoints: np.ndarray | None
+
+
+@dataclass(frozen=True, eq=False)
+class Reach:
+    """How far each point's neighbourhood reaches (`zeroset.density`).
+
+    Attributes
+    ----------
+    radii : (M,) float64
+        Per-point radius (`zeroset.density.point_radii`).
+    sectors : (M, 8) float64
+        Nearest distance per direction (`zeroset.density.sector_distances`).
+    extent : (M, 2) float64
+        Distance to its ``SMOOTH_K``-th nearest neighbour and to the farthest one found
+        (`find_neighbours`): how far the neighbourhoods defined by a count of points reach.
+    noise_model : (intercept, slope) of float, or None
+        Noise as a straight-line function of range (`zeroset.density.range_noise`), when
+        the sensor positions are known.
+    """
+
+    radii: np.ndarray
+    sectors: np.ndarray
+    extent: np.ndarray
+    noise_model: tuple[float, float] | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -314,6 +389,8 @@ class FittedPlanes:
     orientation : Orientation
     jets : Jets or None
         The local fits, not yet oriented; None for ``surface="planes"``.
+    extent, noise_model
+        As in `Reach`.
     """
 
     points: np.ndarray
@@ -321,81 +398,206 @@ class FittedPlanes:
     sectors: np.ndarray
     planes: TangentPlanes
     orientation: Orientation
-    jets: Jets | None = None
+    jets: Jets | None
+    extent: np.ndarray
+    noise_model: tuple[float, float] | None = None
 
 
-def fit_planes(local, viewpoints, parameters, config, stats, stages) -> FittedPlanes:
-    """Stages "neighbours" to "local fits" on points in the local frame; counts to `stats`."""
-    with stages.stage("neighbours"):
-        phase1, cell = local, np.arange(local.shape[0])
-        if parameters.averaging_cell > 0.0:
-            cell = cell_labels(local, parameters.averaging_cell)
-            phase1 = group_means(local, cell)[0]
-            if viewpoints is not None and viewpoints.ndim == 2:
-                viewpoints = group_viewpoints(local, viewpoints, cell)
-        neighbours = knn(phase1, max(config.k_max, WIDE_K))
-        noise = parameters.noise
-        if viewpoints is not None:
-            noise, model = range_noise(phase1, neighbours, viewpoints, noise=noise)
-            stats["noise_model"] = {"intercept": model[0], "slope": model[1]}
-        sectors, _ = sector_distances(phase1, neighbours.indices, neighbours.distances)
-        radii = point_radii(
-            sectors,
-            neighbours,
-            rho_delta=parameters.rho_delta,
-            margin=config.noise_factor * noise,
+@dataclass(frozen=True, eq=False)
+class DataSupport:
+    """Where the data are: the fitted points and the gap bridges between them.
+
+    Attributes
+    ----------
+    points : (P, 3) float64
+    radii : (P,) float64
+        Each one's radius.
+    reach : (P,) float64
+        How far the surface reaches from it.
+    measured : (P,) bool
+        Whether it was measured, not bridged.
+    """
+
+    points: np.ndarray
+    radii: np.ndarray
+    reach: np.ndarray
+    measured: np.ndarray
+
+    def select(self, rows) -> DataSupport:
+        """The support of `rows` (a mask or indices) only."""
+        return DataSupport(
+            self.points[rows], self.radii[rows], self.reach[rows], self.measured[rows]
         )
-    with stages.stage("outliers"):
-        keep = drop_outliers(neighbours, radii, parameters.min_neighbours)
-        stats["outliers"] = int(np.count_nonzero(~keep))
-        phase1, neighbours = phase1[keep], restrict(neighbours, keep)
-        radii, sectors = radii[keep], sectors[keep]
-        if viewpoints is not None and viewpoints.ndim == 2:
-            viewpoints = viewpoints[keep]
-        stats["phase1_points"] = phase1.shape[0]
-        stats["widened_radii"] = int(np.count_nonzero(radii > parameters.rho_delta))
-        if phase1.shape[0] < config.k_max:
-            raise ReconstructionError(
-                f"only {phase1.shape[0]} points are left after removing {stats['outliers']} "
-                f"outliers (fewer than {parameters.min_neighbours} neighbours within "
-                f"rho_delta={parameters.rho_delta:.4g}); increase rho_delta"
-            )
-    with stages.stage("tangent planes"):
-        planes = tangent_planes(
-            phase1, radius=radii, k_min=config.k_min, k_max=config.k_max, neighbours=neighbours
+
+    @staticmethod
+    def concatenate(parts) -> DataSupport:
+        """One support of all `parts`, in order."""
+        return DataSupport(
+            *(np.concatenate([getattr(p, f.name) for p in parts]) for f in fields(DataSupport))
         )
-    with stages.stage("orientation"):
-        orientation = orient_normals(
-            planes.centroids,
-            planes.normals,
-            k=config.orient_k,
-            max_edge=2.0 * radii,
-            neighbours=neighbours,
-            viewpoints=viewpoints,
+
+
+# ------------------------------------------------------------------------------- stages
+
+
+def prepare_points(points, viewpoints, config: ReconstructionConfig) -> tuple[LocalCloud, dict]:
+    """Stage "prepare": crop and sample the points (N, 3), put them in spatial order, reject
+    a cloud no surface can come from, and move them and their `viewpoints` into a frame
+    centred on them."""
+    reduction = reduce_chunks(
+        lambda: [{"points": points}],
+        crop_box=config.crop,
+        sample=config.sample,
+        voxel_size=config.voxel_size,
+        seed=config.seed,
+    )
+    counts = {k: v for k, v in reduction.counts.items() if k != "input_points"}
+    rows = reduction.rows
+    if rows.size < config.k_max:
+        left = (
+            f" of {points.shape[0]} left after cropping and sampling"
+            if rows.size < points.shape[0]
+            else ""
         )
-        stats["orientation_components"] = orientation.n_components
-        stats["orientation_turned"] = orientation.turned
-        if orientation.disagreement is not None:
-            stats["orientation_disagreement"] = orientation.disagreement
-            stats["viewpoints_untrusted"] = int(orientation.viewpoints_untrusted)
-    jets = None
-    if config.surface == "jets":
-        with stages.stage("local fits"):
-            rows = keep[cell]  # every point of the cells kept, with its cell's plane
-            jets = fit_jets(
-                local[rows],
-                (np.cumsum(keep) - 1)[cell[rows]],
-                planes.centroids,
-                planes.normals,
-                noise=parameters.quadric_noise,
-                rho_delta=parameters.rho_delta,
-                support=config.fit_support,
-                density=(config.radius_k + 1) / (np.pi * parameters.spacing**2),
-            )
-            stats["jets"] = jets.centres.shape[0]
-            stats["fit_support"] = jets.support
-            stats["fit_notes"] = "; ".join(jets.notes)
-    return FittedPlanes(phase1, radii, sectors, planes, orientation, jets)
+        raise InputError(
+            f"only {rows.size} point{'' if rows.size == 1 else 's'}{left}; "
+            f"a neighbourhood needs at least k_max={config.k_max}"
+        )
+    rows = rows[spatial_order(points[rows])]
+    kept = points[rows]
+    _check_spread(kept)
+    offset = (kept.min(axis=0) + kept.max(axis=0)) / 2.0
+    return LocalCloud(
+        kept - offset, offset, local_viewpoints(viewpoints, rows, offset, config)
+    ), counts
+
+
+def local_viewpoints(viewpoints, rows, offset, config: ReconstructionConfig):
+    """The sensor positions of the points `rows` in the frame of `offset`: of each, from
+    `viewpoints` (N, 3); else one for all from ``config.viewpoint``; else None."""
+    if viewpoints is not None:
+        return viewpoints[rows] - offset
+    if config.viewpoint is not None:
+        return np.asarray(config.viewpoint, dtype=np.float64) - offset
+    return None
+
+
+def choose_parameters(local: np.ndarray, config: ReconstructionConfig) -> tuple[Parameters, dict]:
+    """Stage "parameters": `zeroset.parameters.estimate_parameters` with `config`'s knobs."""
+    parameters = estimate_parameters(
+        local,
+        k=config.radius_k,
+        quantile=config.quantile,
+        noise_factor=config.noise_factor,
+        cube_factor=config.cube_factor,
+        k_max=config.k_max,
+        rho_delta=config.rho_delta,
+        cube_size=config.cube_size,
+        averaging_cell=config.averaging_cell,
+        min_neighbours=config.min_neighbours,
+        rng=config.seed,
+    )
+    return parameters, {}
+
+
+def average_in_cells(local, viewpoints, parameters: Parameters) -> tuple[Cells, dict]:
+    """Stage "cell means": the points (N, 3) averaged in cubic cells of
+    ``parameters.averaging_cell``, or kept as they are when it is 0."""
+    if parameters.averaging_cell <= 0.0:
+        return Cells(local, np.arange(local.shape[0]), viewpoints), {}
+    cell = cell_labels(local, parameters.averaging_cell)
+    if viewpoints is not None and viewpoints.ndim == 2:
+        viewpoints = group_viewpoints(local, viewpoints, cell)
+    return Cells(group_means(local, cell)[0], cell, viewpoints), {}
+
+
+def find_neighbours(points, config: ReconstructionConfig) -> tuple[Neighbourhoods, dict]:
+    """Stage "neighbours": the nearest ``max(k_max, WIDE_K)`` of every point (M, 3)."""
+    return knn(points, max(config.k_max, WIDE_K)), {}
+
+
+def measure_radii(cells: Cells, neighbours, parameters: Parameters, config) -> tuple[Reach, dict]:
+    """Stage "radii": the sector distances and radius of every point, its noise margin
+    from the sensor's range-noise model where the sensors are known."""
+    noise, model = parameters.noise, None
+    if cells.viewpoints is not None:
+        noise, model = range_noise(cells.points, neighbours, cells.viewpoints, noise=noise)
+    sectors, _ = sector_distances(cells.points, neighbours.indices, neighbours.distances)
+    radii = point_radii(
+        sectors, neighbours, rho_delta=parameters.rho_delta, margin=config.noise_factor * noise
+    )
+    extent = neighbours.distances[:, [SMOOTH_K - 1, -1]]
+    return Reach(radii, sectors, extent, model), {}
+
+
+def drop_sparse_points(cells: Cells, neighbours, reach: Reach, parameters: Parameters, config):
+    """Stage "outliers": drop the points with fewer than ``parameters.min_neighbours``
+    neighbours within their radius; the cells, neighbourhoods and reach of the rest."""
+    keep = drop_outliers(neighbours, reach.radii, parameters.min_neighbours)
+    kept = int(np.count_nonzero(keep))
+    counts = {
+        "outliers": keep.size - kept,
+        "phase1_points": kept,
+        "widened_radii": int(np.count_nonzero(reach.radii[keep] > parameters.rho_delta)),
+    }
+    if kept < config.k_max:
+        raise ReconstructionError(
+            f"only {kept} points are left after removing {keep.size - kept} "
+            f"outliers (fewer than {parameters.min_neighbours} neighbours within "
+            f"rho_delta={parameters.rho_delta:.4g}); increase rho_delta"
+        )
+    row = np.where(keep, np.cumsum(keep) - 1, -1)
+    viewpoints = cells.viewpoints
+    if viewpoints is not None and viewpoints.ndim == 2:
+        viewpoints = viewpoints[keep]
+    cells = Cells(cells.points[keep], np.where(cells.cell >= 0, row[cells.cell], -1), viewpoints)
+    reach = Reach(reach.radii[keep], reach.sectors[keep], reach.extent[keep], reach.noise_model)
+    return (cells, restrict(neighbours, keep), reach), counts
+
+
+def fit_tangent_planes(points, neighbours, reach: Reach, config) -> tuple[TangentPlanes, dict]:
+    """Stage "tangent planes": a plane through every point's neighbourhood within its radius."""
+    planes = tangent_planes(
+        points, radius=reach.radii, k_min=config.k_min, k_max=config.k_max, neighbours=neighbours
+    )
+    return planes, {}
+
+
+def orient(planes: TangentPlanes, neighbours, reach: Reach, viewpoints, config):
+    """Stage "orientation": `zeroset.orientation.orient_normals` over edges of at most two
+    radii, towards the sensors where they are known."""
+    orientation = orient_normals(
+        planes.centroids,
+        planes.normals,
+        k=config.orient_k,
+        max_edge=2.0 * reach.radii,
+        neighbours=neighbours,
+        viewpoints=viewpoints,
+    )
+    counts = {
+        "orientation_components": orientation.n_components,
+        "orientation_turned": orientation.turned,
+    }
+    if orientation.disagreement is not None:
+        counts["viewpoints_untrusted"] = int(orientation.viewpoints_untrusted)
+    return orientation, counts
+
+
+def fit_local_surfaces(local, cells: Cells, planes, parameters: Parameters, config):
+    """Stage "local fits": quadric jets over every point (N, 3) of the cells kept, each with
+    its cell's plane (`zeroset.jets.fit_jets`)."""
+    rows = cells.cell >= 0
+    jets = fit_jets(
+        local[rows],
+        cells.cell[rows],
+        planes.centroids,
+        planes.normals,
+        noise=parameters.quadric_noise,
+        rho_delta=parameters.rho_delta,
+        support=config.fit_support,
+        density=(config.radius_k + 1) / (np.pi * parameters.spacing**2),
+    )
+    return jets, {}
 
 
 def oriented_jets(fitted: FittedPlanes, normals: np.ndarray) -> Jets | None:
@@ -405,46 +607,167 @@ def oriented_jets(fitted: FittedPlanes, normals: np.ndarray) -> Jets | None:
     return orient_jets(fitted.jets, fitted.planes.centroids, normals)
 
 
-def distance_field(
-    local,
-    fitted,
-    normals,
-    parameters,
-    stats,
-    stages,
-    *,
-    config: ReconstructionConfig,
-    jets: Jets | None = None,
-) -> tuple[DistanceField, np.ndarray]:
+def distance_field(local, fitted: FittedPlanes, normals, jets, parameters: Parameters, config):
     """Stage "signed distance": the field of the planes of `fitted` turned by `normals`,
     valued by the oriented `jets` where they are given, and the gap bridges (B, 3).
 
     Without ``config.gap_bridges`` there are none. For ``config.rim == "data"`` the field
-    reaches one cube further than the points' radii, so that
-    the cubes cover the edge of the data wherever the lattice lies; the rim is then cut
-    back to that edge (`trim_rim`)."""
-    with stages.stage("signed distance"):
-        bridges = (
-            gap_bridges(
-                fitted.points, fitted.sectors, rho_delta=parameters.rho_delta, normals=normals
-            )
-            if config.gap_bridges
-            else np.zeros((0, 3))
+    reaches one cube further than the points' radii, so that the cubes cover the edge of
+    the data wherever the lattice lies; the rim is then cut back to that edge (`trim_rim`).
+    """
+    bridges = (
+        gap_bridges(fitted.points, fitted.sectors, rho_delta=parameters.rho_delta, normals=normals)
+        if config.gap_bridges
+        else np.zeros((0, 3))
+    )
+    field_ = signed_distance(
+        local,
+        fitted.planes.centroids,
+        normals,
+        cube_size=parameters.cube_size,
+        radius=fitted.radii + (parameters.cube_size if config.rim == "data" else 0.0),
+        bridges=bridges,
+        bridge_reach=BRIDGE_REACH * parameters.rho_delta,
+        surface=None if jets is None else (lambda x: evaluate_jets(jets, x)[0]),
+    )
+    counts = {
+        "gap_bridge_points": bridges.shape[0],
+        "grid_vertices": int(field_.values.size),
+        "undefined_grid_vertices": int(np.count_nonzero(np.isnan(field_.values))),
+    }
+    return (field_, bridges), counts
+
+
+def contour(field_: DistanceField, fitted: FittedPlanes, normals, config) -> tuple[Mesh, dict]:
+    """Stage "contour": marching cubes, or the Method of Cubes on the points of `fitted`."""
+    if config.contour == "cubes":
+        return method_of_cubes(field_, fitted.points, fitted.planes.centroids, normals), {}
+    return marching_cubes(field_), {}
+
+
+def data_support(fitted: FittedPlanes, bridges: np.ndarray, parameters: Parameters):
+    """The `DataSupport` of the points of `fitted` and the gap `bridges` (B, 3). The reach
+    is a point's radius, and for a bridge point the step between bridge points, so that a
+    chord covers a strip along itself and not the middle of a round hole off its end."""
+    n_bridges = bridges.shape[0]
+    return DataSupport(
+        points=np.concatenate([fitted.points, bridges]),
+        radii=np.r_[fitted.radii, np.full(n_bridges, BRIDGE_REACH * parameters.rho_delta)],
+        reach=np.r_[fitted.radii, np.full(n_bridges, BRIDGE_STEP * parameters.rho_delta)],
+        measured=np.r_[np.ones(fitted.points.shape[0], bool), np.zeros(n_bridges, bool)],
+    )
+
+
+def repair(mesh: Mesh, parameters: Parameters, config) -> tuple[Mesh, dict]:
+    """Stage "repair": split bow-tie vertices, close small holes, drop tiny components."""
+    mesh, split = split_nonmanifold_vertices(mesh)
+    mesh, filled, widest = fill_small_holes(
+        mesh, config.max_hole_edges, max_width=HOLE_WIDTH * parameters.rho_delta
+    )
+    mesh, dropped = remove_small_components(mesh, config.min_component_faces)
+    if mesh.n_faces == 0:
+        raise ReconstructionError(
+            f"no surface: no cube of size {parameters.cube_size:.4g} has eight defined "
+            f"corners with a sign change; rho_delta={parameters.rho_delta:.4g} may be "
+            "too small for the point spacing"
         )
-        stats["gap_bridge_points"] = bridges.shape[0]
-        field_ = signed_distance(
-            local,
-            fitted.planes.centroids,
-            normals,
-            cube_size=parameters.cube_size,
-            radius=fitted.radii + (parameters.cube_size if config.rim == "data" else 0.0),
-            bridges=bridges,
-            bridge_reach=BRIDGE_REACH * parameters.rho_delta,
-            surface=None if jets is None else (lambda x: evaluate_jets(jets, x)[0]),
+    return mesh, {
+        "bowtie_vertices_split": split,
+        "small_holes_filled": filled,
+        "widest_hole_filled": widest,
+        "small_components_dropped": dropped,
+    }
+
+
+def trim_rim(mesh: Mesh, support: DataSupport, parameters: Parameters, config):
+    """Stage "rim": cut the boundaries back to the edge of the data (`DataSupport`), and
+    open every hole wider than the longest gap bridge to its measured points
+    (``HOLE_BALL``); a hole the cut opened with room for no such ball is closed again."""
+    mesh, counts = trim_to_data(
+        mesh,
+        support.points,
+        support.radii,
+        cube_size=parameters.cube_size,
+        reach=support.reach,
+        measured=support.measured,
+        hole=HOLE_BALL,
+    )
+    # Where the cut's own line pinches two stretches of rim into one vertex, split it.
+    mesh, counts["bowtie_vertices_split"] = split_nonmanifold_vertices(mesh)
+    if config.max_hole_edges > 0:  # gaps with room for no empty ball are no holes
+        measured = support.select(support.measured)
+        closable = no_empty_ball(measured.points, HOLE_BALL * measured.radii)
+        mesh, filled, widest = fill_small_holes(mesh, WIDTH_EDGES, closable=closable)
+        counts["small_holes_filled"], counts["widest_hole_filled"] = filled, widest
+    mesh, counts["small_components_dropped"] = remove_small_components(
+        mesh, config.min_component_faces
+    )
+    if mesh.n_faces == 0:
+        raise ReconstructionError(
+            "no surface: the points within reach of every vertex sample a curve or too "
+            f"few directions (rho_delta={parameters.rho_delta:.4g})"
         )
-        stats["grid_vertices"] = int(field_.values.size)
-        stats["undefined_grid_vertices"] = int(np.count_nonzero(np.isnan(field_.values)))
-    return field_, bridges
+    return mesh, counts
+
+
+def refine(mesh: Mesh, jets: Jets, parameters: Parameters, config) -> tuple[Mesh, dict]:
+    """Stage "refine": move the vertices onto the blend of the `jets` (`zeroset.refine`)."""
+    return refine_mesh(mesh, jets, noise=parameters.noise, levels=config.refine_levels)
+
+
+def optimize_surface(mesh: Mesh, points, offset, config, progress: bool):
+    """Stage "optimize": phase 2 on `mesh` (local frame) with every point (N, 3) of the
+    input that the crop keeps."""
+    if config.crop is not None:
+        points = points[crop(points, config.crop[:3], config.crop[3:])]
+    result = optimize_mesh(
+        mesh,
+        points - offset,
+        c_rep=config.c_rep,
+        kappa=config.kappa,
+        rng=config.seed,
+        progress=progress,
+    )
+    return result, {
+        "phase2_points": result.stats["points_used"],
+        "phase2_points_ignored": result.stats["points_ignored"],
+    }
+
+
+# ----------------------------------------------------------------------- what was found
+
+
+def fit_stats(fitted: FittedPlanes) -> dict:
+    """The range-noise model and the sensors' disagreement with the tree, where known."""
+    stats = {}
+    if fitted.noise_model is not None:
+        intercept, slope = fitted.noise_model
+        stats["noise_model"] = {"intercept": intercept, "slope": slope}
+    if fitted.orientation.disagreement is not None:
+        stats["orientation_disagreement"] = fitted.orientation.disagreement
+    return stats
+
+
+def jet_stats(jets: Jets | None) -> dict:
+    """How many local fits make the surface, their support and notes; empty without jets."""
+    if jets is None:
+        return {}
+    return {
+        "jets": jets.centres.shape[0],
+        "fit_support": jets.support,
+        "fit_notes": "; ".join(jets.notes),
+    }
+
+
+def mesh_stats(mesh: Mesh) -> dict:
+    """Counts that describe a mesh: vertices, faces, boundary loops, Euler characteristic."""
+    return {
+        "vertices": mesh.n_vertices,
+        "faces": mesh.n_faces,
+        "boundary_loops": len(topology.boundary_loops(mesh.faces)),
+        "mesh_components": topology.face_components(mesh.faces, mesh.n_vertices)[0],
+        "euler_characteristic": topology.euler_characteristic(mesh),
+    }
 
 
 def surface_changes(stats: dict, config: ReconstructionConfig) -> list[str]:
@@ -495,95 +818,6 @@ def warn_surface_changes(stats: dict, config: ReconstructionConfig) -> None:
         warnings.warn(message, SurfaceWarning, stacklevel=3)
 
 
-def data_support(fitted: FittedPlanes, bridges: np.ndarray, parameters: Parameters):
-    """Where the data are: the points (N + B, 3) of `fitted` and the gap `bridges`, each
-    one's radius (N + B,), how far (N + B,) the surface reaches from it, and whether it was
-    measured (N + B,), not bridged. The reach is a point's radius, and for a bridge point
-    the step between bridge points, so that a chord covers a strip along itself and not
-    the middle of a round hole off its end."""
-    n_bridges = bridges.shape[0]
-    radii = np.r_[fitted.radii, np.full(n_bridges, BRIDGE_REACH * parameters.rho_delta)]
-    reach = np.r_[fitted.radii, np.full(n_bridges, BRIDGE_STEP * parameters.rho_delta)]
-    measured = np.r_[np.ones(fitted.points.shape[0], bool), np.zeros(n_bridges, bool)]
-    return np.concatenate([fitted.points, bridges]), radii, reach, measured
-
-
-def repair(mesh: Mesh, parameters, config, stats) -> Mesh:
-    """Split bow-tie vertices, close small holes, drop tiny components; counts to `stats`."""
-    mesh, stats["bowtie_vertices_split"] = split_nonmanifold_vertices(mesh)
-    mesh, stats["small_holes_filled"], stats["widest_hole_filled"] = fill_small_holes(
-        mesh, config.max_hole_edges, max_width=HOLE_WIDTH * parameters.rho_delta
-    )
-    mesh, stats["small_components_dropped"] = remove_small_components(
-        mesh, config.min_component_faces
-    )
-    if mesh.n_faces == 0:
-        raise ReconstructionError(
-            f"no surface: no cube of size {parameters.cube_size:.4g} has eight defined "
-            f"corners with a sign change; rho_delta={parameters.rho_delta:.4g} may be "
-            "too small for the point spacing"
-        )
-    return mesh
-
-
-def trim_rim(mesh: Mesh, points, radii, reach, measured, parameters, config, stats) -> Mesh:
-    """Stage "rim": cut the boundaries back to the edge of the data (`data_support`), and
-    open every hole wider than the longest gap bridge to its measured points
-    (``HOLE_BALL``); a hole the cut opened with room for no such ball is closed again;
-    counts to `stats`."""
-    mesh, counts = trim_to_data(
-        mesh,
-        points,
-        radii,
-        cube_size=parameters.cube_size,
-        reach=reach,
-        measured=measured,
-        hole=HOLE_BALL,
-    )
-    stats.update(counts)
-    # Where the cut's own line pinches two stretches of rim into one vertex, split it.
-    mesh, split = split_nonmanifold_vertices(mesh)
-    stats["bowtie_vertices_split"] += split
-    if config.max_hole_edges > 0:  # gaps with room for no empty ball are no holes
-        closable = no_empty_ball(points[measured], HOLE_BALL * radii[measured])
-        mesh, filled, widest = fill_small_holes(mesh, WIDTH_EDGES, closable=closable)
-        stats["small_holes_filled"] += filled
-        stats["widest_hole_filled"] = max(stats["widest_hole_filled"], widest)
-    mesh, dropped = remove_small_components(mesh, config.min_component_faces)
-    stats["small_components_dropped"] += dropped
-    if mesh.n_faces == 0:
-        raise ReconstructionError(
-            "no surface: the points within reach of every vertex sample a curve or too "
-            f"few directions (rho_delta={parameters.rho_delta:.4g})"
-        )
-    return mesh
-
-
-def _prepare(points: np.ndarray, config: ReconstructionConfig, stats: dict) -> np.ndarray:
-    """Row indices of `points` kept by crop, random and voxel sampling, in spatial order."""
-    reduction = reduce_chunks(
-        lambda: [{"points": points}],
-        crop_box=config.crop,
-        sample=config.sample,
-        voxel_size=config.voxel_size,
-        seed=config.seed,
-    )
-    stats.update({k: v for k, v in reduction.counts.items() if k != "input_points"})
-    rows = reduction.rows
-    needed = config.k_max
-    if rows.size < needed:
-        left = (
-            f" of {points.shape[0]} left after cropping and sampling"
-            if rows.size < points.shape[0]
-            else ""
-        )
-        raise InputError(
-            f"only {rows.size} point{'' if rows.size == 1 else 's'}{left}; "
-            f"a neighbourhood needs at least k_max={needed}"
-        )
-    return rows[spatial_order(points[rows])]
-
-
 def _check_spread(points: np.ndarray) -> None:
     """Reject clouds no surface can come from: coincident or collinear points, or a scale
     whose squared distances float64 cannot hold."""
@@ -608,12 +842,11 @@ def _check_spread(points: np.ndarray) -> None:
         raise InputError("the points are collinear; no surface can be reconstructed")
 
 
-def mesh_stats(mesh: Mesh) -> dict:
-    """Counts that describe a mesh: vertices, faces, boundary loops, Euler characteristic."""
-    return {
-        "vertices": mesh.n_vertices,
-        "faces": mesh.n_faces,
-        "boundary_loops": len(topology.boundary_loops(mesh.faces)),
-        "mesh_components": topology.face_components(mesh.faces, mesh.n_vertices)[0],
-        "euler_characteristic": topology.euler_characteristic(mesh),
-    }
+def _checked(points, viewpoints) -> tuple[np.ndarray, np.ndarray | None]:
+    """The points (N, 3) and their sensor positions (N, 3) or None, validated."""
+    points = as_points(points)
+    if viewpoints is not None:
+        viewpoints = as_viewpoints(viewpoints, points.shape[0])
+        if viewpoints.shape != points.shape:
+            raise InputError(f"viewpoints must match points {points.shape}; got {viewpoints.shape}")
+    return points, viewpoints

@@ -16,34 +16,36 @@ import resource
 import time
 import warnings
 from contextlib import contextmanager
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from ._extras import require
 from ._kernels.orientation import component_extremes
 from ._lattice import LIMIT
-from ._progress import Stages
+from ._progress import Stages, add_counts
 from ._validate import as_points
 from .config import ReconstructionConfig
 from .contour import keyed_marching_cubes
+from .density import RADIUS_CAP
 from .errors import InputError, ReconstructionError, SurfaceWarning
 from .jets import REACH, concatenate_jets, select_jets
 from .neighbours import spatial_order
 from .orientation import DIRECTIONS, root_rule
 from .pipeline import (
+    DataSupport,
     choose_parameters,
     data_support,
     distance_field,
-    fit_planes,
+    finish,
+    fit,
+    jet_stats,
+    local_viewpoints,
     mesh_stats,
     oriented_jets,
-    repair,
-    trim_rim,
     warn_surface_changes,
 )
 from .prepare import crop as inside
-from .refine import refine_mesh
 from .topology import is_consistently_oriented, is_edge_manifold
 from .types import Jets, Mesh, Parameters
 
@@ -55,10 +57,18 @@ __all__ = [
     "reconstruct_tiled",
 ]
 
-#: Halo around a tile's box: neighbourhoods, radii, bridges and the nearest planes of its
-#: border cubes all lie within this many rho_delta (and HALO_CUBES cubes) of the box.
+#: Halo planned around a tile's box: radii, bridges and the nearest planes of its border
+#: cubes lie within this many rho_delta (and HALO_CUBES cubes) of the box, with the LEVELS
+#: of neighbourhoods allowed for.
 HALO_RADII = 8.0
 HALO_CUBES = 2
+#: Neighbourhoods of a count of points lie three deep under a cube's value: a plane's
+#: SMOOTH_K nearest (its radius, its neighbours), theirs (whether they are outliers), and
+#: the WIDE_K nearest of those (their sectors). The halo allows each to reach RADIUS_CAP
+#: rho_delta, as far as a radius may; every tile measures them (`FittedPlanes.extent`) and
+#: reads a wider halo, up to GROW_ROUNDS times, where they reach further.
+LEVELS = (0, 0, 1)
+GROW_ROUNDS = 3
 #: Points per tile that ``tiles="auto"`` aims at.
 AUTO_TILE_POINTS = 2_000_000
 #: Clouds of at most this many points (inside the crop) get their parameters from all of
@@ -67,6 +77,11 @@ AUTO_TILE_POINTS = 2_000_000
 WHOLE_CLOUD_POINTS = 5_000_000
 #: Fewest points a tile must hold to be reconstructed; emptier tiles hold no surface.
 MIN_TILE_POINTS = 32
+#: Largest distance, over the cube size, between two tiles' copies of a shared vertex
+#: that a run takes for rounding (both come from the same corner values).
+SEAM_TOLERANCE = 1e-9
+#: Least factor a tile's halo grows by when its neighbourhoods reach beyond it.
+GROWTH = 1.5
 
 
 @dataclass(frozen=True)
@@ -82,11 +97,19 @@ class Tile:
     box : (6,) float64
         ``xmin, ymin, zmin, xmax, ymax, zmax`` of its points, halo included, in input
         coordinates.
+    halo : float
+        Width of the halo, in data units.
     """
 
     index: tuple[int, int, int]
     owned: tuple[np.ndarray, np.ndarray]
     box: np.ndarray
+    halo: float
+
+    def grown(self, halo: float) -> Tile:
+        """The same tile with a halo of `halo`."""
+        wider = halo - self.halo
+        return replace(self, box=np.r_[self.box[:3] - wider, self.box[3:] + wider], halo=halo)
 
 
 @dataclass(frozen=True, eq=False)
@@ -104,13 +127,17 @@ class TiledReconstruction:
     tiles : list of Tile
     stats : dict
         Counts summed over the tiles (halo points counted by every tile that reads them);
-        ``tiles`` and ``tile_grid`` (tiles per axis); ``orientation_components`` (groups of
+        ``tiles`` and ``tile_grid`` (tiles per axis); ``tiles_failed`` (left out, with
+        `allow_gaps`); ``tiles_grown`` (whose halo was widened for neighbourhoods that
+        reach further); ``seam_vertex_gap`` (the largest distance between two tiles'
+        copies of a shared vertex); ``orientation_components`` (groups of
         tiles' components joined at seams), ``tile_components_flipped`` and
         ``seam_disagreement`` (the share of seam points held by two tiles whose normals
         still point apart, None without seams); ``worker_peak_mib`` (peak resident memory of each
         worker process, by address); the welded mesh's counts.
     timings : dict
-        Wall-clock seconds of each pass.
+        Wall-clock seconds of each pass ("bounds", "parameters", "fit", "contour", "weld"),
+        then of each stage run on the welded mesh ("repair", "rim", "refine").
     """
 
     mesh: Mesh
@@ -148,7 +175,12 @@ def plan_tiles(
         box_lo = offset + cube * np.maximum(lo, first) - halo
         box_hi = offset + cube * np.minimum(hi, last) + halo
         tiles.append(
-            Tile(index=tuple(int(i) for i in index), owned=(lo, hi), box=np.r_[box_lo, box_hi])
+            Tile(
+                index=tuple(int(i) for i in index),
+                owned=(lo, hi),
+                box=np.r_[box_lo, box_hi],
+                halo=halo,
+            )
         )
     return tiles
 
@@ -299,38 +331,34 @@ def reconstruct_tiled(
     start = time.perf_counter()
     stats = {"input_points": n_points, "tiles": len(plan), "tiles_failed": len(failed)}
     for piece in pieces:
-        for key, value in piece["stats"].items():
-            stats[key] = stats.get(key, 0) + value
+        add_counts(stats, piece["counts"])
     stats["orientation_components"] = groups
     stats["seam_disagreement"] = disagreement
     stats["tile_grid"] = [int(c) for c in counts]
     stats["tile_components_flipped"] = sum(len(flip) for flip in flips)
-    mesh = repair(_weld(pieces), parameters, config, stats)
+    mesh, stats["seam_vertex_gap"] = _weld(pieces)
+    if stats["seam_vertex_gap"] > SEAM_TOLERANCE * parameters.cube_size:
+        warnings.warn(
+            f"two tiles put a shared vertex {stats['seam_vertex_gap']:.3g} apart, the first "
+            "one's kept: a neighbourhood reached beyond their halos, and the mesh differs from "
+            "the untiled one there; use fewer tiles",
+            SurfaceWarning,
+            stacklevel=2,
+        )
     if not (is_edge_manifold(mesh.faces) and is_consistently_oriented(mesh.faces)):
         raise ReconstructionError(
             "the tiles' meshes welded into a mesh that is not edge-manifold and consistently "
             "oriented: their seams disagree; run without tiles, or with fewer"
         )
-    if config.rim == "data":
-        mesh = trim_rim(
-            mesh,
-            np.concatenate([p["points"] for p in pieces]),
-            np.concatenate([p["radii"] for p in pieces]),
-            np.concatenate([p["reach"] for p in pieces]),
-            np.concatenate([p["measured"] for p in pieces]),
-            parameters,
-            config,
-            stats,
-        )
-    jets = _owned_jets(pieces)
-    if jets is not None:
-        mesh, refined = refine_mesh(mesh, jets, noise=parameters.noise, levels=config.refine_levels)
-        stats.update(refined)
-        stats["jets"], stats["fit_support"] = jets.centres.shape[0], jets.support
-        stats["fit_notes"] = "; ".join(jets.notes)
-    mesh = Mesh(vertices=mesh.vertices + offset, faces=mesh.faces)
-    stats.update(mesh_stats(mesh))
     timings["weld"] = time.perf_counter() - start
+    jets = _owned_jets(pieces)
+    stages = Stages((), show=False)
+    support = DataSupport.concatenate([piece["support"] for piece in pieces])
+    mesh = finish(mesh, support, jets, parameters, config, stages)
+    timings.update(stages.timings)
+    add_counts(stats, stages.counts)
+    mesh = Mesh(vertices=mesh.vertices + offset, faces=mesh.faces)
+    stats.update(jet_stats(jets) | mesh_stats(mesh))
     warn_surface_changes(stats, config)
     peaks: dict = {}
     for piece in pieces:
@@ -408,7 +436,7 @@ def _estimate_whole(source, low, high, offset, config) -> Parameters:
     """Parameters of every point (a Dask task): those `zeroset.reconstruct` chooses."""
     points, _ = _read(source, np.r_[low, high], config.crop)
     local = points - offset
-    return choose_parameters(local[spatial_order(local)], config)
+    return choose_parameters(local[spatial_order(local)], config)[0]
 
 
 def _estimate(client, source, config, low, high, offset, counts, progress) -> Parameters:
@@ -437,26 +465,49 @@ def _estimate_tile(source, box, offset, config) -> tuple[Parameters, int] | None
     if len(points) < max(config.k_max, 1000):
         return None
     local = points - offset
-    return choose_parameters(local[spatial_order(local)], config), len(points)
+    return choose_parameters(local[spatial_order(local)], config)[0], len(points)
 
 
 def _fit_tile(source, tile: Tile, offset, parameters, config) -> dict | None:
-    """Read a tile, fit and orient its planes (a Dask task; the result stays on the worker)."""
-    points, viewpoints = _read(source, tile.box, config.crop)
-    if len(points) < max(MIN_TILE_POINTS, config.k_max):
-        return None
-    order = spatial_order(points)
-    local = points[order] - offset
-    if viewpoints is not None:
-        viewpoints = viewpoints[order] - offset
-    elif config.viewpoint is not None:
-        viewpoints = np.asarray(config.viewpoint, dtype=np.float64) - offset
-    stats: dict = {}
-    try:
-        fitted = fit_planes(local, viewpoints, parameters, config, stats, Stages((), show=False))
-    except ReconstructionError as error:
-        return {"tile": tile, "failed": str(error)}
-    return {"tile": tile, "local": local, "fitted": fitted, "stats": stats}
+    """Read a tile, fit and orient its planes (a Dask task; the result stays on the worker),
+    with a wider halo where its neighbourhoods reach further than the halo allows."""
+    base = tile.halo - len(LEVELS) * RADIUS_CAP * parameters.rho_delta
+    for grown in range(GROW_ROUNDS + 1):
+        points, viewpoints = _read(source, tile.box, config.crop)
+        if len(points) < max(MIN_TILE_POINTS, config.k_max):
+            return None
+        order = spatial_order(points)
+        local = points[order] - offset
+        viewpoints = local_viewpoints(viewpoints, order, offset, config)
+        stages = Stages((), show=False)
+        try:
+            fitted = fit(local, viewpoints, parameters, config, stages)
+        except ReconstructionError as error:
+            return {"tile": tile, "failed": str(error)}
+        needed = _halo_needed(fitted, tile, base, parameters.cube_size)
+        if needed <= tile.halo:
+            stages.counts["tiles_grown"] = int(grown > 0)
+            return {"tile": tile, "local": local, "fitted": fitted, "counts": stages.counts}
+        tile = tile.grown(max(needed, GROWTH * tile.halo))
+    return {
+        "tile": tile,
+        "failed": f"its neighbourhoods reach {needed:.4g} from its cubes, beyond the halo of "
+        f"{tile.halo:.4g} read around them after {GROW_ROUNDS} widenings; the points are "
+        "too sparse for tiles this small: use fewer tiles",
+    }
+
+
+def _halo_needed(fitted, tile: Tile, base: float, cube: float) -> float:
+    """The halo `tile` needs for the neighbourhoods `fitted` measured: `base`, the reach of
+    what a cube's value reads by distance, plus the ``LEVELS`` of neighbourhoods reached in
+    turn from its cubes."""
+    lo, hi = _owned_box(tile, cube)
+    points = fitted.points
+    away = np.linalg.norm(np.maximum(np.maximum(lo - points, points - hi), 0.0), axis=1)
+    needed = base
+    for column in LEVELS:
+        needed += fitted.extent[away <= needed, column].max(initial=0.0)
+    return float(needed)
 
 
 def _seam(fit: dict | None, parameters: Parameters) -> dict | None:
@@ -550,8 +601,10 @@ def _agree(seams) -> tuple[list[dict], float | None, int]:
     alike = np.einsum("ij,ij->i", normals[a], normals[b]) >= 0.0
     sign = np.ones(int(first_node[-1]))
     group = np.arange(sign.size)
-    if not all(seams[i]["sensors"] for i in live):
-        _spanning_signs(node[a], node[b], alike, sign, group)
+    _spanning_signs(node[a], node[b], alike, sign, group)
+    if all(seams[i]["sensors"] for i in live):  # the sensors have set every sign
+        sign[:] = 1.0
+    else:
         _root_signs(np.concatenate([seams[i]["extremes"] for i in live]), sign, group)
     disagreement = None
     if a.size:
@@ -622,38 +675,27 @@ def _contour_tile(
         "vertices": np.zeros((0, 3)),
         "faces": np.zeros((0, 3), dtype=np.int64),
         "cube_keys": np.zeros(0, dtype=np.int64),
-        "points": np.zeros((0, 3)),
-        "radii": np.zeros(0),
-        "reach": np.zeros(0),
-        "measured": np.zeros(0, bool),
-        "stats": {},
+        "support": DataSupport(np.zeros((0, 3)), np.zeros(0), np.zeros(0), np.zeros(0, bool)),
+        "counts": {},
         "peak_mib": peak,
         "worker": worker,
     }
     if fit is None or "failed" in fit:
         return empty
-    fitted, stats = fit["fitted"], dict(fit["stats"])
+    fitted = fit["fitted"]
     sign = np.ones(fitted.orientation.n_components)
     for component, flip in flips.items():
         sign[component] = flip
     normals = fitted.orientation.normals * sign[fitted.orientation.component][:, None]
     jets = oriented_jets(fitted, normals)
-    field_, bridges = distance_field(
-        fit["local"],
-        fitted,
-        normals,
-        parameters,
-        stats,
-        Stages((), show=False),
-        config=config,
-        jets=jets,
+    stages = Stages((), show=False)
+    field_, bridges = stages.run(
+        "signed distance", distance_field, fit["local"], fitted, normals, jets, parameters, config
     )
     edge_keys, vertices, faces, cube_keys = keyed_marching_cubes(field_, owned=fit["tile"].owned)
-    for key in ("jets", "fit_support", "fit_notes"):  # the client counts the jets owned
-        stats.pop(key, None)
-    support, radii, reach, measured = data_support(fitted, bridges, parameters)
+    support = data_support(fitted, bridges, parameters)
     lo, hi = fit["tile"].owned
-    owned = _in_cubes(support, lo, hi, parameters.cube_size)
+    owned = _in_cubes(support.points, lo, hi, parameters.cube_size)
     if jets is not None:
         jets = select_jets(jets, _in_cubes(jets.centres, lo, hi, parameters.cube_size))
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
@@ -663,11 +705,8 @@ def _contour_tile(
         "vertices": vertices,
         "faces": faces,
         "cube_keys": cube_keys,
-        "points": support[owned],
-        "radii": radii[owned],
-        "reach": reach[owned],
-        "measured": measured[owned],
-        "stats": stats,
+        "support": support.select(owned),
+        "counts": add_counts(dict(fit["counts"]), stages.counts),
         "peak_mib": peak,
         "jets": jets,
     }
@@ -685,8 +724,10 @@ def _owned_jets(pieces) -> Jets | None:
     return concatenate_jets(owned) if owned else None
 
 
-def _weld(pieces) -> Mesh:
-    """One mesh of the tiles' pieces: vertices shared by global edge key, faces in cube order."""
+def _weld(pieces) -> tuple[Mesh, float]:
+    """One mesh of the tiles' pieces: vertices shared by global edge key, faces in cube
+    order; and how far apart two tiles put one vertex (0 when their halos held all that
+    its corners' values depend on)."""
     keys = np.concatenate([p["edge_keys"] for p in pieces])
     vertices = np.concatenate([p["vertices"] for p in pieces])
     starts = np.cumsum([0] + [len(p["edge_keys"]) for p in pieces[:-1]])
@@ -694,7 +735,8 @@ def _weld(pieces) -> Mesh:
     cube_keys = np.concatenate([p["cube_keys"] for p in pieces])
     unique, first, inverse = np.unique(keys, return_index=True, return_inverse=True)
     order = np.argsort(cube_keys, kind="stable")
-    return Mesh(vertices=vertices[first], faces=inverse[faces[order]].astype(np.int64))
+    gap = np.linalg.norm(vertices - vertices[first][inverse.ravel()], axis=1).max(initial=0.0)
+    return Mesh(vertices=vertices[first], faces=inverse[faces[order]].astype(np.int64)), float(gap)
 
 
 def _gather(client, futures, what: str, progress: bool) -> list:
