@@ -32,6 +32,7 @@ def signed_distance(
     bridges=None,
     bridge_reach: float | None = None,
     surface=None,
+    trees=(None, None),
 ) -> DistanceField:
     """Evaluate the signed distance f on the grid vertices near the data.
 
@@ -67,6 +68,8 @@ def signed_distance(
         ``surface(positions (M, 3)) -> (M,)`` signed distance: where it is given, the
         planes only decide where f is defined and `surface` gives its values (the blended
         jets of `zeroset.jets`).
+    trees : (cKDTree or None, cKDTree or None)
+        Trees over `points` and over `centroids`, to reuse those already built.
 
     Returns
     -------
@@ -104,8 +107,11 @@ def signed_distance(
     )
     ijk = _lattice.decode(vertex_keys)
     positions = origin + cube_size * ijk
-    _, nearest = build_tree(centroids).query(positions, k=CANDIDATES, workers=-1)
-    data_tree = build_tree(points)
+    data_tree, centroid_tree = (
+        build_tree(built) if tree is None else tree
+        for built, tree in zip((points, centroids), trees, strict=True)
+    )
+    _, nearest = centroid_tree.query(positions, k=CANDIDATES, workers=-1)
     bridge_tree = build_tree(bridges) if bridges.shape[0] else None
     values = np.full(positions.shape[0], np.nan)
     pending = np.arange(positions.shape[0])

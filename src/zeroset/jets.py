@@ -176,9 +176,7 @@ def fit_jets(
         # largest support (and two pilot cells) of a pilot on the rung.
         reach = rho_delta * (np.sqrt(2.0) ** (level + 1) + 4.0 * PILOT_SUPPORT)
         on_rung = build_tree(pilots.centres[pilot_level == level])
-        used = np.isfinite(
-            on_rung.query(pilots.centres, distance_upper_bound=reach, workers=-1)[0]
-        )
+        used = np.isfinite(on_rung.query(pilots.centres, distance_upper_bound=reach, workers=-1)[0])
         rows = slice(None) if used.all() else used[pilot_of]
         subset, subset_feet = points[rows], feet[rows]
         cells, counts, spread = group_means(
@@ -191,7 +189,12 @@ def fit_jets(
         k = min(FIT_K, cells.shape[0])
         distances, indices = build_tree(cells).query(cells[rows], k=k, workers=-1)
         distances, indices = _own_sheet(
-            cells[rows], cells, indices, distances, pilots, pilot_tree,
+            cells[rows],
+            cells,
+            indices,
+            distances,
+            pilots,
+            pilot_tree,
             max(SHEET * rho_delta, SHEET_NOISE * sigma),
         )
         farthest = np.where(np.isfinite(distances), distances, 0.0).max(axis=1)
@@ -344,7 +347,7 @@ def _nearest_median(tree, values: np.ndarray, positions: np.ndarray) -> np.ndarr
     return np.median(values[nearest.reshape(-1, k)], axis=1)
 
 
-def orient_jets(jets: Jets, centroids, normals) -> Jets:
+def orient_jets(jets: Jets, centroids, normals, *, tree=None) -> Jets:
     """Turn every jet's normal (and height) to agree with the nearest oriented planes.
 
     The planes vote, ``ORIENT_K`` nearest the jet's centre, each with the cosine between
@@ -357,11 +360,14 @@ def orient_jets(jets: Jets, centroids, normals) -> Jets:
     centroids, normals : (M, 3) array_like of float
         Tangent-plane origins and consistently oriented normals
         (`zeroset.orientation.orient_normals`).
+    tree : cKDTree, optional
+        A tree over `centroids`, to reuse one already built.
     """
     centroids = as_points(centroids, "centroids")
     normals = as_points(normals, "normals")
     k = min(ORIENT_K, centroids.shape[0])
-    _, plane = build_tree(centroids).query(jets.centres, k=k, workers=-1)
+    tree = build_tree(centroids) if tree is None else tree
+    _, plane = tree.query(jets.centres, k=k, workers=-1)
     plane = plane.reshape(-1, k)
     vote = np.einsum("ij,ikj->i", jets.frames[:, 2], normals[plane])
     sign = np.where(vote < 0.0, -1.0, 1.0)

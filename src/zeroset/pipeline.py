@@ -17,8 +17,10 @@ from __future__ import annotations
 
 import warnings
 from dataclasses import dataclass, field, fields
+from functools import cached_property
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from . import topology
 from ._progress import Stages
@@ -38,7 +40,7 @@ from .density import (
 from .distance import signed_distance
 from .errors import InputError, ReconstructionError, SurfaceWarning
 from .jets import evaluate_jets, fit_jets, orient_jets
-from .neighbours import knn, restrict, spatial_order
+from .neighbours import build_tree, knn, restrict, spatial_order
 from .normals import tangent_planes
 from .optimization import OptimizationResult, optimize_mesh
 from .orientation import UNTRUSTED, orient_normals
@@ -206,19 +208,11 @@ def reconstruct(
     stages = Stages(stage_names(config, optimize), show=progress)
     try:
         cloud = stages.run("prepare", prepare_points, points, viewpoints, config)
-        parameters = stages.run("parameters", choose_parameters, cloud.local, config)
-        fitted = fit(cloud.local, cloud.viewpoints, parameters, config, stages)
+        parameters = stages.run("parameters", choose_parameters, cloud.local, config, cloud.tree)
+        fitted = fit(cloud, parameters, config, stages)
         normals = fitted.orientation.normals
-        jets = oriented_jets(fitted, normals)
-        field_, bridges = stages.run(
-            "signed distance",
-            distance_field,
-            cloud.local,
-            fitted,
-            normals,
-            jets,
-            parameters,
-            config,
+        field_, bridges, jets = stages.run(
+            "signed distance", distance_field, cloud, fitted, normals, parameters, config
         )
         mesh = stages.run("contour", contour, field_, fitted, normals, config)
         support = data_support(fitted, bridges, parameters)
@@ -264,22 +258,20 @@ def stage_names(config: ReconstructionConfig, optimize: bool = False) -> tuple[s
     return names + ((OPTIMIZE_STAGE,) if optimize else ())
 
 
-def fit(local, viewpoints, parameters: Parameters, config, stages: Stages) -> FittedPlanes:
-    """Stages "cell means" to "local fits" on points (N, 3) in the local frame.
-
-    `viewpoints` are the points' sensor positions, (N, 3) or one (3,), or None.
-    """
-    cells = stages.run("cell means", average_in_cells, local, viewpoints, parameters)
+def fit(cloud: LocalCloud, parameters: Parameters, config, stages: Stages) -> FittedPlanes:
+    """Stages "cell means" to "local fits" on the points of `cloud`."""
+    local = cloud.local
+    cells = stages.run("cell means", average_in_cells, local, cloud.viewpoints, parameters)
     neighbours = stages.run("neighbours", find_neighbours, cells.points, config)
-    reach = stages.run("radii", measure_radii, cells, neighbours, parameters, config)
-    cells, neighbours, reach = stages.run(
-        "outliers", drop_sparse_points, cells, neighbours, reach, parameters, config
+    density = stages.run("radii", measure_radii, cells, neighbours, parameters, config)
+    cells, neighbours, density = stages.run(
+        "outliers", drop_sparse_points, cells, neighbours, density, parameters, config
     )
     planes = stages.run(
-        "tangent planes", fit_tangent_planes, cells.points, neighbours, reach, config
+        "tangent planes", fit_tangent_planes, cells.points, neighbours, density, config
     )
     orientation = stages.run(
-        "orientation", orient, planes, neighbours, reach, cells.viewpoints, config
+        "orientation", orient, planes, neighbours, density, cells.viewpoints, config
     )
     jets = None
     if config.surface == "jets":
@@ -288,13 +280,10 @@ def fit(local, viewpoints, parameters: Parameters, config, stages: Stages) -> Fi
         )
     return FittedPlanes(
         points=cells.points,
-        radii=reach.radii,
-        sectors=reach.sectors,
+        density=density,
         planes=planes,
         orientation=orientation,
         jets=jets,
-        extent=reach.extent,
-        noise_model=reach.noise_model,
     )
 
 
@@ -329,6 +318,11 @@ class LocalCloud:
     offset: np.ndarray
     viewpoints: np.ndarray | None
 
+    @cached_property
+    def tree(self) -> cKDTree:
+        """The k-d tree of `local`, built once."""
+        return build_tree(self.local)
+
 
 @dataclass(frozen=True, eq=False)
 class Cells:
@@ -350,8 +344,8 @@ class Cells:
 
 
 @dataclass(frozen=True, eq=False)
-class Reach:
-    """How far each point's neighbourhood reaches (`zeroset.density`).
+class Density:
+    """How densely the points lie around each one (`zeroset.density`).
 
     Attributes
     ----------
@@ -381,26 +375,29 @@ class FittedPlanes:
     ----------
     points : (N, 3) float64
         The points the planes were fitted to (averaged in cells, outliers dropped).
-    radii : (N,) float64
-        Per-point radius (`zeroset.density.point_radii`).
-    sectors : (N, 8) float64
-        Nearest distance per direction (`zeroset.density.sector_distances`).
+    density : Density
+        Their radii, sectors and neighbourhoods' extent, and the range-noise model.
     planes : TangentPlanes
     orientation : Orientation
     jets : Jets or None
         The local fits, not yet oriented; None for ``surface="planes"``.
-    extent, noise_model
-        As in `Reach`.
     """
 
     points: np.ndarray
-    radii: np.ndarray
-    sectors: np.ndarray
+    density: Density
     planes: TangentPlanes
     orientation: Orientation
-    jets: Jets | None
-    extent: np.ndarray
-    noise_model: tuple[float, float] | None = None
+    jets: Jets | None = None
+
+    @cached_property
+    def tree(self) -> cKDTree:
+        """The k-d tree of `points`, built once."""
+        return build_tree(self.points)
+
+    @cached_property
+    def centroid_tree(self) -> cKDTree:
+        """The k-d tree of the planes' centroids, built once."""
+        return build_tree(self.planes.centroids)
 
 
 @dataclass(frozen=True, eq=False)
@@ -422,6 +419,11 @@ class DataSupport:
     radii: np.ndarray
     reach: np.ndarray
     measured: np.ndarray
+
+    @cached_property
+    def measured_tree(self) -> cKDTree:
+        """The k-d tree of the measured points, built once."""
+        return build_tree(self.points[self.measured])
 
     def select(self, rows) -> DataSupport:
         """The support of `rows` (a mask or indices) only."""
@@ -482,10 +484,12 @@ def local_viewpoints(viewpoints, rows, offset, config: ReconstructionConfig):
     return None
 
 
-def choose_parameters(local: np.ndarray, config: ReconstructionConfig) -> tuple[Parameters, dict]:
-    """Stage "parameters": `zeroset.parameters.estimate_parameters` with `config`'s knobs."""
+def choose_parameters(local: np.ndarray, config: ReconstructionConfig, tree=None):
+    """Stage "parameters": `zeroset.parameters.estimate_parameters` with `config`'s knobs,
+    on points (N, 3) and their k-d `tree` where it is built."""
     parameters = estimate_parameters(
         local,
+        tree=tree,
         k=config.radius_k,
         quantile=config.quantile,
         noise_factor=config.noise_factor,
@@ -516,7 +520,7 @@ def find_neighbours(points, config: ReconstructionConfig) -> tuple[Neighbourhood
     return knn(points, max(config.k_max, WIDE_K)), {}
 
 
-def measure_radii(cells: Cells, neighbours, parameters: Parameters, config) -> tuple[Reach, dict]:
+def measure_radii(cells: Cells, neighbours, parameters: Parameters, config) -> tuple[Density, dict]:
     """Stage "radii": the sector distances and radius of every point, its noise margin
     from the sensor's range-noise model where the sensors are known."""
     noise, model = parameters.noise, None
@@ -527,18 +531,18 @@ def measure_radii(cells: Cells, neighbours, parameters: Parameters, config) -> t
         sectors, neighbours, rho_delta=parameters.rho_delta, margin=config.noise_factor * noise
     )
     extent = neighbours.distances[:, [SMOOTH_K - 1, -1]]
-    return Reach(radii, sectors, extent, model), {}
+    return Density(radii, sectors, extent, model), {}
 
 
-def drop_sparse_points(cells: Cells, neighbours, reach: Reach, parameters: Parameters, config):
+def drop_sparse_points(cells: Cells, neighbours, density: Density, parameters: Parameters, config):
     """Stage "outliers": drop the points with fewer than ``parameters.min_neighbours``
-    neighbours within their radius; the cells, neighbourhoods and reach of the rest."""
-    keep = drop_outliers(neighbours, reach.radii, parameters.min_neighbours)
+    neighbours within their radius; the cells, neighbourhoods and density of the rest."""
+    keep = drop_outliers(neighbours, density.radii, parameters.min_neighbours)
     kept = int(np.count_nonzero(keep))
     counts = {
         "outliers": keep.size - kept,
         "phase1_points": kept,
-        "widened_radii": int(np.count_nonzero(reach.radii[keep] > parameters.rho_delta)),
+        "widened_radii": int(np.count_nonzero(density.radii[keep] > parameters.rho_delta)),
     }
     if kept < config.k_max:
         raise ReconstructionError(
@@ -551,26 +555,28 @@ def drop_sparse_points(cells: Cells, neighbours, reach: Reach, parameters: Param
     if viewpoints is not None and viewpoints.ndim == 2:
         viewpoints = viewpoints[keep]
     cells = Cells(cells.points[keep], np.where(cells.cell >= 0, row[cells.cell], -1), viewpoints)
-    reach = Reach(reach.radii[keep], reach.sectors[keep], reach.extent[keep], reach.noise_model)
-    return (cells, restrict(neighbours, keep), reach), counts
+    density = Density(
+        density.radii[keep], density.sectors[keep], density.extent[keep], density.noise_model
+    )
+    return (cells, restrict(neighbours, keep), density), counts
 
 
-def fit_tangent_planes(points, neighbours, reach: Reach, config) -> tuple[TangentPlanes, dict]:
+def fit_tangent_planes(points, neighbours, density: Density, config) -> tuple[TangentPlanes, dict]:
     """Stage "tangent planes": a plane through every point's neighbourhood within its radius."""
     planes = tangent_planes(
-        points, radius=reach.radii, k_min=config.k_min, k_max=config.k_max, neighbours=neighbours
+        points, radius=density.radii, k_min=config.k_min, k_max=config.k_max, neighbours=neighbours
     )
     return planes, {}
 
 
-def orient(planes: TangentPlanes, neighbours, reach: Reach, viewpoints, config):
+def orient(planes: TangentPlanes, neighbours, density: Density, viewpoints, config):
     """Stage "orientation": `zeroset.orientation.orient_normals` over edges of at most two
     radii, towards the sensors where they are known."""
     orientation = orient_normals(
         planes.centroids,
         planes.normals,
         k=config.orient_k,
-        max_edge=2.0 * reach.radii,
+        max_edge=2.0 * density.radii,
         neighbours=neighbours,
         viewpoints=viewpoints,
     )
@@ -600,42 +606,44 @@ def fit_local_surfaces(local, cells: Cells, planes, parameters: Parameters, conf
     return jets, {}
 
 
-def oriented_jets(fitted: FittedPlanes, normals: np.ndarray) -> Jets | None:
-    """The jets of `fitted`, each turned like the nearest of the planes turned by `normals`."""
-    if fitted.jets is None:
-        return None
-    return orient_jets(fitted.jets, fitted.planes.centroids, normals)
-
-
-def distance_field(local, fitted: FittedPlanes, normals, jets, parameters: Parameters, config):
-    """Stage "signed distance": the field of the planes of `fitted` turned by `normals`,
-    valued by the oriented `jets` where they are given, and the gap bridges (B, 3).
+def distance_field(cloud: LocalCloud, fitted: FittedPlanes, normals, parameters, config):
+    """Stage "signed distance": the field of the planes of `fitted` turned by `normals`
+    around the points of `cloud`, the gap bridges (B, 3), and the jets of `fitted` turned
+    like the nearest planes (None for ``surface="planes"``), which value the field.
 
     Without ``config.gap_bridges`` there are none. For ``config.rim == "data"`` the field
     reaches one cube further than the points' radii, so that the cubes cover the edge of
     the data wherever the lattice lies; the rim is then cut back to that edge (`trim_rim`).
     """
-    bridges = (
-        gap_bridges(fitted.points, fitted.sectors, rho_delta=parameters.rho_delta, normals=normals)
-        if config.gap_bridges
-        else np.zeros((0, 3))
-    )
+    jets = None
+    if fitted.jets is not None:
+        jets = orient_jets(fitted.jets, fitted.planes.centroids, normals, tree=fitted.centroid_tree)
+    bridges = np.zeros((0, 3))
+    if config.gap_bridges:
+        bridges = gap_bridges(
+            fitted.points,
+            fitted.density.sectors,
+            rho_delta=parameters.rho_delta,
+            tree=fitted.tree,
+            normals=normals,
+        )
     field_ = signed_distance(
-        local,
+        cloud.local,
         fitted.planes.centroids,
         normals,
         cube_size=parameters.cube_size,
-        radius=fitted.radii + (parameters.cube_size if config.rim == "data" else 0.0),
+        radius=fitted.density.radii + (parameters.cube_size if config.rim == "data" else 0.0),
         bridges=bridges,
         bridge_reach=BRIDGE_REACH * parameters.rho_delta,
         surface=None if jets is None else (lambda x: evaluate_jets(jets, x)[0]),
+        trees=(cloud.tree, fitted.centroid_tree),
     )
     counts = {
         "gap_bridge_points": bridges.shape[0],
         "grid_vertices": int(field_.values.size),
         "undefined_grid_vertices": int(np.count_nonzero(np.isnan(field_.values))),
     }
-    return (field_, bridges), counts
+    return (field_, bridges, jets), counts
 
 
 def contour(field_: DistanceField, fitted: FittedPlanes, normals, config) -> tuple[Mesh, dict]:
@@ -652,8 +660,8 @@ def data_support(fitted: FittedPlanes, bridges: np.ndarray, parameters: Paramete
     n_bridges = bridges.shape[0]
     return DataSupport(
         points=np.concatenate([fitted.points, bridges]),
-        radii=np.r_[fitted.radii, np.full(n_bridges, BRIDGE_REACH * parameters.rho_delta)],
-        reach=np.r_[fitted.radii, np.full(n_bridges, BRIDGE_STEP * parameters.rho_delta)],
+        radii=np.r_[fitted.density.radii, np.full(n_bridges, BRIDGE_REACH * parameters.rho_delta)],
+        reach=np.r_[fitted.density.radii, np.full(n_bridges, BRIDGE_STEP * parameters.rho_delta)],
         measured=np.r_[np.ones(fitted.points.shape[0], bool), np.zeros(n_bridges, bool)],
     )
 
@@ -691,12 +699,15 @@ def trim_rim(mesh: Mesh, support: DataSupport, parameters: Parameters, config):
         reach=support.reach,
         measured=support.measured,
         hole=HOLE_BALL,
+        measured_tree=support.measured_tree,
     )
     # Where the cut's own line pinches two stretches of rim into one vertex, split it.
     mesh, counts["bowtie_vertices_split"] = split_nonmanifold_vertices(mesh)
     if config.max_hole_edges > 0:  # gaps with room for no empty ball are no holes
         measured = support.select(support.measured)
-        closable = no_empty_ball(measured.points, HOLE_BALL * measured.radii)
+        closable = no_empty_ball(
+            measured.points, HOLE_BALL * measured.radii, tree=support.measured_tree
+        )
         mesh, filled, widest = fill_small_holes(mesh, WIDTH_EDGES, closable=closable)
         counts["small_holes_filled"], counts["widest_hole_filled"] = filled, widest
     mesh, counts["small_components_dropped"] = remove_small_components(
@@ -740,8 +751,8 @@ def optimize_surface(mesh: Mesh, points, offset, config, progress: bool):
 def fit_stats(fitted: FittedPlanes) -> dict:
     """The range-noise model and the sensors' disagreement with the tree, where known."""
     stats = {}
-    if fitted.noise_model is not None:
-        intercept, slope = fitted.noise_model
+    if fitted.density.noise_model is not None:
+        intercept, slope = fitted.density.noise_model
         stats["noise_model"] = {"intercept": intercept, "slope": slope}
     if fitted.orientation.disagreement is not None:
         stats["orientation_disagreement"] = fitted.orientation.disagreement

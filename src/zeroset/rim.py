@@ -172,12 +172,12 @@ def empty_balls(mesh: Mesh, normals, tree, least) -> tuple[np.ndarray, np.ndarra
     return centres[empty[enclosed]], radii[empty[enclosed]]
 
 
-def no_empty_ball(points, least):
+def no_empty_ball(points, least, *, tree=None):
     """A test for `zeroset.repair.fill_small_holes`: whether the fan over a loop
     (`zeroset.repair.fan_samples`) lies everywhere within `least` (N,) of the nearest of
     the `points` (N, 3), so that the hole has room for no empty ball: a gap in the
-    sampling, not a hole. The k-d tree is built at the first loop tested."""
-    tree = None
+    sampling, not a hole. The k-d `tree` over the points is built at the first loop tested
+    unless given."""
 
     def closable(ring: np.ndarray) -> bool:
         nonlocal tree
@@ -343,7 +343,15 @@ def _bow_ties(faces: np.ndarray, n_vertices: int) -> np.ndarray:
 
 
 def trim_to_data(
-    mesh: Mesh, points, radii, *, cube_size: float, reach=None, measured=None, hole=None
+    mesh: Mesh,
+    points,
+    radii,
+    *,
+    cube_size: float,
+    reach=None,
+    measured=None,
+    hole=None,
+    measured_tree=None,
 ) -> tuple[Mesh, dict]:
     """Cut the mesh back to the edge of the data around its boundaries.
 
@@ -371,6 +379,8 @@ def trim_to_data(
     hole : float, optional
         Radius of the smallest empty ball that opens a hole, over the radius of the point
         it reaches to; none by default.
+    measured_tree : cKDTree, optional
+        A tree over the `measured` points, to reuse one already built.
 
     Returns
     -------
@@ -392,7 +402,8 @@ def trim_to_data(
     centres, depths = np.zeros((0, 3)), np.zeros(0)
     if hole is not None:
         solid = np.ones(points.shape[0], bool) if measured is None else measured
-        solid_tree = tree if solid.all() else build_tree(points[solid])
+        solid_tree = tree if solid.all() else measured_tree
+        solid_tree = build_tree(points[solid]) if solid_tree is None else solid_tree
         centres, depths = empty_balls(mesh, normals, solid_tree, hole * radii[solid])
     balls, hollow = None, np.zeros(0, dtype=np.int64)
     if centres.shape[0]:

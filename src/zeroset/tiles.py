@@ -34,6 +34,7 @@ from .neighbours import spatial_order
 from .orientation import DIRECTIONS, root_rule
 from .pipeline import (
     DataSupport,
+    LocalCloud,
     choose_parameters,
     data_support,
     distance_field,
@@ -42,7 +43,6 @@ from .pipeline import (
     jet_stats,
     local_viewpoints,
     mesh_stats,
-    oriented_jets,
     warn_surface_changes,
 )
 from .prepare import crop as inside
@@ -65,7 +65,7 @@ HALO_CUBES = 2
 #: Neighbourhoods of a count of points lie three deep under a cube's value: a plane's
 #: SMOOTH_K nearest (its radius, its neighbours), theirs (whether they are outliers), and
 #: the WIDE_K nearest of those (their sectors). The halo allows each to reach RADIUS_CAP
-#: rho_delta, as far as a radius may; every tile measures them (`FittedPlanes.extent`) and
+#: rho_delta, as far as a radius may; every tile measures them (`Density.extent`) and
 #: reads a wider halo, up to GROW_ROUNDS times, where they reach further.
 LEVELS = (0, 0, 1)
 GROW_ROUNDS = 3
@@ -477,17 +477,18 @@ def _fit_tile(source, tile: Tile, offset, parameters, config) -> dict | None:
         if len(points) < max(MIN_TILE_POINTS, config.k_max):
             return None
         order = spatial_order(points)
-        local = points[order] - offset
-        viewpoints = local_viewpoints(viewpoints, order, offset, config)
+        cloud = LocalCloud(
+            points[order] - offset, offset, local_viewpoints(viewpoints, order, offset, config)
+        )
         stages = Stages((), show=False)
         try:
-            fitted = fit(local, viewpoints, parameters, config, stages)
+            fitted = fit(cloud, parameters, config, stages)
         except ReconstructionError as error:
             return {"tile": tile, "failed": str(error)}
         needed = _halo_needed(fitted, tile, base, parameters.cube_size)
         if needed <= tile.halo:
             stages.counts["tiles_grown"] = int(grown > 0)
-            return {"tile": tile, "local": local, "fitted": fitted, "counts": stages.counts}
+            return {"tile": tile, "cloud": cloud, "fitted": fitted, "counts": stages.counts}
         tile = tile.grown(max(needed, GROWTH * tile.halo))
     return {
         "tile": tile,
@@ -506,7 +507,7 @@ def _halo_needed(fitted, tile: Tile, base: float, cube: float) -> float:
     away = np.linalg.norm(np.maximum(np.maximum(lo - points, points - hi), 0.0), axis=1)
     needed = base
     for column in LEVELS:
-        needed += fitted.extent[away <= needed, column].max(initial=0.0)
+        needed += fitted.density.extent[away <= needed, column].max(initial=0.0)
     return float(needed)
 
 
@@ -687,10 +688,9 @@ def _contour_tile(
     for component, flip in flips.items():
         sign[component] = flip
     normals = fitted.orientation.normals * sign[fitted.orientation.component][:, None]
-    jets = oriented_jets(fitted, normals)
     stages = Stages((), show=False)
-    field_, bridges = stages.run(
-        "signed distance", distance_field, fit["local"], fitted, normals, jets, parameters, config
+    field_, bridges, jets = stages.run(
+        "signed distance", distance_field, fit["cloud"], fitted, normals, parameters, config
     )
     edge_keys, vertices, faces, cube_keys = keyed_marching_cubes(field_, owned=fit["tile"].owned)
     support = data_support(fitted, bridges, parameters)
