@@ -105,6 +105,8 @@ def test_results_copy_the_callers_arrays():
     [
         ("trimesh", ["-o", "mesh.obj"], "mesh"),
         ("moderngl", ["-o", "m.ply", "--preview", "p.png"], "render"),
+        ("matplotlib.figure", ["-o", "m.ply", "--inspect", "pipe"], "render"),
+        ("moderngl", ["-o", "m.ply", "--inspect", "pipe"], "render"),
     ],
 )
 def test_a_missing_extra_stops_the_run_before_any_work(
@@ -118,6 +120,15 @@ def test_a_missing_extra_stops_the_run_before_any_work(
     (line,) = capsys.readouterr().err.strip().splitlines()  # no warning of a run: none ran
     assert line.endswith(f"needs the '{extra}' extra: pip install 'zeroset[{extra}]'")
     assert sorted(path.name for path in tmp_path.iterdir()) == ["cloud.ply"]
+
+
+def test_inspect_without_the_render_extra_stops_before_reading(tmp_path, monkeypatch, capsys):
+    path = io.write_mesh(tmp_path / "m.ply", Mesh(vertices=np.eye(3), faces=[[0, 1, 2]]))
+    monkeypatch.setitem(sys.modules, "matplotlib.figure", None)
+    assert main(["inspect", str(path), "-o", str(tmp_path / "pipe")]) == 2
+    (line,) = capsys.readouterr().err.strip().splitlines()
+    assert line.endswith("needs the 'render' extra: pip install 'zeroset[render]'")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["m.ply"]
 
 
 def test_a_ply_mesh_without_end_header_is_refused_by_name(tmp_path):

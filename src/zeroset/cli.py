@@ -439,10 +439,14 @@ def _run_reconstruct(args: argparse.Namespace) -> int:
         force=args.force,
         mesh=args.output,
     )
-    if args.preview is not None:
+    if args.preview is not None:  # a missing extra stops the run here, not after it
         from .viz import picture_modules
 
-        picture_modules()  # a missing extra stops the run here, not after it
+        picture_modules()
+    if args.inspect is not None:
+        from .inspect._pictures import picture_modules
+
+        picture_modules()
     if args.register and len(args.input) < 2:
         raise InputError(f"{args.input[0]}: --register needs two or more scans")
     config = ReconstructionConfig().with_overrides(**_config_overrides(args))
@@ -773,7 +777,9 @@ def _captioned(pictures: dict) -> dict:
 
 def _run_inspect(args: argparse.Namespace) -> int:
     from . import io
+    from .inspect._pictures import picture_modules
 
+    picture_modules()  # a missing extra stops the run here, not after it
     _check_outputs(_inspection_files(args.output), [args.mesh, args.points], force=args.force)
     mesh = io.read_mesh(args.mesh)
     cloud = io.read_points(args.points) if args.points else None

@@ -21,6 +21,7 @@ from .types import Mesh
 
 __all__ = [
     "RenderError",
+    "colour_map",
     "distance_colours",
     "intensity_colours",
     "picture_modules",
@@ -313,13 +314,13 @@ def distance_colours(distances, *, limit: float | None = None) -> np.ndarray:
     -------
     (M, 3) float64 in [0, 1]
     """
-    colormaps = require("matplotlib", "colour maps").colormaps
+    viridis = colour_map("viridis")
 
     distances = np.asarray(distances, dtype=np.float64)
     known = np.isfinite(distances)
     if limit is None:
         limit = float(np.percentile(distances[known], 95)) if known.any() else 1.0
-    colours = colormaps["viridis"](np.clip(np.nan_to_num(distances) / max(limit, 1e-300), 0, 1))
+    colours = viridis(np.clip(np.nan_to_num(distances) / max(limit, 1e-300), 0, 1))
     colours[~known] = 0.6
     return colours[:, :3]
 
@@ -339,12 +340,17 @@ def intensity_colours(intensity) -> np.ndarray:
     -------
     (N, 3) float64 in [0, 1]
     """
-    colormaps = require("matplotlib", "colour maps").colormaps
+    plasma = colour_map("plasma")
 
     intensity = np.asarray(intensity, dtype=np.float64)
     low, high = np.percentile(intensity, [2, 98]) if intensity.size else (0.0, 1.0)
     scaled = np.clip((intensity - low) / max(high - low, 1e-300), 0.0, 1.0)
-    return colormaps["plasma"](scaled)[:, :3]
+    return plasma(scaled)[:, :3]
+
+
+def colour_map(name: str):
+    """matplotlib's colour map `name` (the ``render`` extra): values in [0, 1] to RGBA."""
+    return require("matplotlib", "colour maps").colormaps[name]
 
 
 def picture_modules() -> tuple:

@@ -17,6 +17,14 @@ __all__ = ["clock_label", "deviation_colours", "deviation_map", "mesh_picture", 
 COLOURS = "RdBu_r"
 
 
+def picture_modules() -> tuple:
+    """What the inspection's pictures import (the ``render`` extra): matplotlib's figures,
+    and what `zeroset.viz.picture_modules` names for the picture of the mesh."""
+    from .. import viz
+
+    return (require("matplotlib.figure", "inspection plots"), *viz.picture_modules())
+
+
 def clock_label(clock: float) -> str:
     """A clock angle in degrees as the time on a clock face: 0 is 12:00, 90 is 3:00."""
     minutes = int(round((clock % 360.0) * 2.0)) % 720  # 360 degrees are 720 minutes
@@ -35,11 +43,11 @@ def colour_limit(inspection: Inspection) -> float:
 def deviation_colours(deviation, limit: float) -> np.ndarray:
     """(M, 3) colours in [0, 1] of signed deviations (m): blue inward, red outward, at
     `limit` the deepest; grey where NaN."""
-    colormaps = require("matplotlib", "colour maps").colormaps
+    from ..viz import colour_map
 
     deviation = np.asarray(deviation, dtype=np.float64)
     scaled = 0.5 + 0.5 * np.clip(np.nan_to_num(deviation) / limit, -1.0, 1.0)
-    colours = colormaps[COLOURS](scaled)[:, :3]
+    colours = colour_map(COLOURS)(scaled)[:, :3]
     colours[~np.isfinite(deviation)] = 0.6
     return colours
 
