@@ -10,9 +10,8 @@ from zeroset._kernels import evaluate as evaluate_kernels
 from zeroset._kernels import jets as jet_kernels
 from zeroset._kernels import linalg
 from zeroset._kernels import normals as normals_kernels
-from zeroset._kernels import optimize as optimize_kernels
 from zeroset._kernels import orientation as orientation_kernels
-from zeroset.evaluate import closest_points_on_triangles
+from zeroset._kernels import triangles as triangle_kernels
 from zeroset.neighbours import knn
 
 
@@ -51,6 +50,13 @@ def _triangle_soup_inputs(rng):
     degenerate[-1] = True
     points = rng.uniform(-3, 3, size=(300, 3))
     return points, corners.reshape(-1, 3), np.arange(3 * n).reshape(n, 3), degenerate
+
+
+def _closest_points_on_mesh(points, vertices, faces, degenerate):
+    """The hierarchy's closest point, face and distance; it flags degenerate faces itself."""
+    face, bary, distance2 = evaluate_kernels.closest_points_on_mesh(points, vertices, faces)
+    closest = np.einsum("ni,nij->nj", bary, vertices[faces[face]])
+    return closest, face, np.sqrt(distance2)
 
 
 def _sector_inputs(rng):
@@ -93,11 +99,7 @@ COMPARISONS = [
     (density_kernels.sector_nearest, reference.sector_nearest, _sector_inputs),
     (normals_kernels.centroid_covariance, reference.centroid_covariance, _neighbourhood_inputs),
     (orientation_kernels.propagate_signs, reference.propagate_signs, _tree_inputs),
-    (
-        evaluate_kernels.closest_points_on_mesh,
-        reference.closest_points_on_mesh,
-        _triangle_soup_inputs,
-    ),
+    (_closest_points_on_mesh, reference.closest_points_on_mesh, _triangle_soup_inputs),
 ]
 
 
@@ -146,19 +148,83 @@ def test_component_extremes_finds_the_farthest_point_per_direction():
             assert extremes[c, 2 * axis + 1] == members[np.argmin(points[members, axis])]
 
 
-def test_projection_with_barycentrics_matches_the_numpy_closest_point():
-    rng = np.random.default_rng(4)
+def _barycentric_closest_points(rng):
     corners = rng.normal(size=(500, 3, 3)) * 10.0 ** rng.uniform(-2, 1, size=(500, 1, 1))
     corners[-1, 2] = corners[-1, 0] + 1e-14  # nearly degenerate
     points = rng.normal(size=(500, 3)) * 2
     a, b, c = (np.ascontiguousarray(corners[:, k]) for k in range(3))
     distance2, bary = np.zeros(500), np.zeros((500, 3))
-    optimize_kernels.project_rows(points, a, b, c, distance2, bary)
-    expected = closest_points_on_triangles(points, a, b, c)
+    triangle_kernels.closest_point_rows(points, a, b, c, distance2, bary)
+    return points, a, b, c, distance2, bary
+
+
+def test_barycentrics_reproduce_the_closest_point():
+    points, a, b, c, distance2, bary = _barycentric_closest_points(np.random.default_rng(4))
+    assert np.all(bary >= 0.0)
+    np.testing.assert_allclose(bary.sum(axis=1), 1.0, rtol=0, atol=1e-15)
     foot = bary[:, :1] * a + bary[:, 1:2] * b + bary[:, 2:] * c
-    np.testing.assert_allclose(foot, expected, atol=1e-9)
-    np.testing.assert_allclose(distance2, np.sum((points - expected) ** 2, axis=1), atol=1e-9)
-    assert np.all(bary >= -1e-12) and np.allclose(bary.sum(axis=1), 1.0)
+    np.testing.assert_allclose(distance2, np.sum((points - foot) ** 2, axis=1), atol=1e-12)
+    # Against an independent search: the triangle densely sampled, and its three edges.
+    u, v = np.meshgrid(np.linspace(0, 1, 101), np.linspace(0, 1, 101))
+    u, v = u[u + v <= 1], v[u + v <= 1]
+    s = np.linspace(0, 1, 1001)[:, None]
+    for i in range(0, 500, 5):
+        samples = np.concatenate(
+            [a[i] + u[:, None] * (b[i] - a[i]) + v[:, None] * (c[i] - a[i])]
+            + [x + s * (y - x) for x, y in ((a[i], b[i]), (b[i], c[i]), (c[i], a[i]))]
+        )
+        brute = np.sum((samples - points[i]) ** 2, axis=1).min()
+        assert distance2[i] <= brute + 1e-12
+
+
+@pytest.mark.parametrize(
+    "b",
+    [[0.0, 0.0, 0.0], [2.0, 0.0, 0.0], [1.5, 0.0, 0.0], [4.0, 0.0, 0.0]],
+    ids=["b=a", "b=c", "collinear", "collinear outside"],
+)
+def test_barycentrics_on_degenerate_triangles_find_the_nearest_segment_point(b):
+    # a = 0 and c = (2, 0, 0); b repeats a corner or lies on their line, inside or beyond.
+    p = np.array([[0.5, 1.0, 0.0], [3.0, 0.0, 0.0], [-1.0, 0.5, 0.0], [1.5, -2.0, 1.0]])
+    a, c = np.zeros((4, 3)), np.tile([2.0, 0.0, 0.0], (4, 1))
+    b = np.tile(b, (4, 1))
+    hull = np.array([min(b[0, 0], 0.0), max(b[0, 0], 2.0)])
+    expected = np.c_[np.clip(p[:, 0], *hull), np.zeros((4, 2))]
+    distance2, bary = np.zeros(4), np.zeros((4, 3))
+    triangle_kernels.closest_point_rows(p, a, b, c, distance2, bary)
+    assert np.all(np.isfinite(bary)) and np.all(bary >= 0.0)
+    np.testing.assert_allclose(bary.sum(axis=1), 1.0, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(bary[:, :1] * a + bary[:, 1:2] * b + bary[:, 2:] * c, expected)
+    np.testing.assert_allclose(distance2, np.sum((p - expected) ** 2, axis=1))
+
+
+def test_a_point_triangle_is_its_corner():
+    p = np.array([[1.0, 2.0, 3.0]])
+    a = np.array([[0.5, 0.5, 0.5]])
+    distance2, bary = np.zeros(1), np.zeros((1, 3))
+    triangle_kernels.closest_point_rows(p, a, a.copy(), a.copy(), distance2, bary)
+    assert np.all(np.isfinite(bary)) and bary.sum() == 1.0
+    np.testing.assert_allclose(distance2, [0.25 + 2.25 + 6.25])
+
+
+def test_barycentrics_stay_exact_on_slivers():
+    # Triangles whose height is 1e-7.5 to 1e-6 of their length (the differences of dot
+    # products of Ericson's §5.1.5 miss by up to 1e-4 there) and points straight above a
+    # point inside: the distance is the height above the plane.
+    rng = np.random.default_rng(6)
+    n = 300
+    height = 10.0 ** rng.uniform(-7.5, -6, n)
+    a = np.zeros((n, 3))
+    b = np.tile([2.0, 0.0, 0.0], (n, 1))
+    c = np.c_[rng.uniform(0.2, 1.8, n), 2.0 * height, np.zeros(n)]
+    x = rng.uniform(0.3, 1.7, n)
+    room = np.minimum(x / c[:, 0], (2 - x) / (2 - c[:, 0]))  # share of the height at x
+    offset = rng.normal(size=n) * 0.1
+    points = np.c_[x, height * rng.uniform(0.1, 1.9, n) * room, offset]
+    rotation = np.linalg.qr(rng.normal(size=(3, 3)))[0]
+    points, a, b, c = (np.ascontiguousarray(x @ rotation.T) for x in (points, a, b, c))
+    distance2, bary = np.zeros(n), np.zeros((n, 3))
+    triangle_kernels.closest_point_rows(points, a, b, c, distance2, bary)
+    np.testing.assert_allclose(np.sqrt(distance2), np.abs(offset), rtol=0, atol=1e-14)
 
 
 def test_jet_freedom_predicts_the_residual_of_pure_noise():

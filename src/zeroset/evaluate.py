@@ -13,6 +13,7 @@ from scipy import sparse
 from scipy.sparse.csgraph import connected_components
 
 from ._kernels import evaluate as _kernels
+from ._kernels import triangles as _triangles
 from ._validate import as_faces, as_points, positive, require_rng
 from .errors import InputError
 from .topology import corner_fans, edge_ids, face_components
@@ -31,11 +32,6 @@ __all__ = [
     "smallest_angles",
 ]
 
-# A face is degenerate when twice its area is at most this share of its longest edge
-# squared, i.e. its height is below 1e-8 (about the square root of the float64 epsilon) of
-# its length: its normal is then known to no better than 1e-8 radians, and its three edges
-# are the more accurate model of it.
-_DEGENERATE_RATIO = 1e-8
 _TAU_UNITS = ("diagonal", "absolute")
 _UNITS = "data units (those of the vertex coordinates)"
 
@@ -53,23 +49,10 @@ def closest_points_on_triangles(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: 
     treated as its three edges, which are then within that height of the answer: its
     plane is too ill-defined for a projection to be more accurate.
     """
-    ab, ac, ap = b - a, c - a, p - a
-    normal = np.cross(ab, ac)
-    flat = _degenerate(a, b, c)
-    length2 = np.where(flat, 1.0, _dot(normal, normal))
-    # Barycentric coordinates of the projection: dual vectors e_b, e_c with e_b . ab = 1,
-    # e_b . ac = 0, e_c . ab = 0, e_c . ac = 1, both in the plane.
-    wb = _dot(np.cross(ac, normal), ap) / length2
-    wc = _dot(np.cross(normal, ab), ap) / length2
-    inside = ~flat & (wb >= 0) & (wc >= 0) & (wb + wc <= 1)
-    result = a + wb[:, None] * ab + wc[:, None] * ac
-    outside = ~inside
-    if outside.any():
-        p, a, b, c = p[outside], a[outside], b[outside], c[outside]
-        feet = np.stack([_closest_points_on_segments(p, u, v) for u, v in ((a, b), (b, c), (c, a))])
-        nearest = np.argmin(np.linalg.norm(feet - p, axis=2), axis=0)
-        result[outside] = feet[nearest, np.arange(p.shape[0])]
-    return result
+    p, a, b, c = (np.ascontiguousarray(x, dtype=np.float64) for x in (p, a, b, c))
+    distance2, bary = np.zeros(p.shape[0]), np.zeros((p.shape[0], 3))
+    _triangles.closest_point_rows(p, a, b, c, distance2, bary)
+    return bary[:, :1] * a + bary[:, 1:2] * b + bary[:, 2:] * c
 
 
 def closest_points_on_mesh(points, mesh: Mesh) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -631,8 +614,9 @@ def _reference_options(n_samples, taus, tau_unit) -> tuple[int, np.ndarray, str]
 
 def closest_on_arrays(points, vertices, faces):
     """closest_points_on_mesh on validated arrays (N, 3), (M, 3), (F, 3); no checks."""
-    a, b, c = (vertices[faces[:, i]] for i in range(3))
-    return _kernels.closest_points_on_mesh(points, vertices, faces, _degenerate(a, b, c))
+    face, bary, distance2 = _kernels.closest_points_on_mesh(points, vertices, faces)
+    closest = np.einsum("ni,nij->nj", bary, vertices[faces[face]])
+    return closest, face, np.sqrt(distance2)
 
 
 def _sample(vertices, faces, n, rng, name):
@@ -765,17 +749,10 @@ def _dot(u: np.ndarray, v: np.ndarray) -> np.ndarray:
 
 def _degenerate(a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
     """Whether each triangle (a, b, c) has zero area up to rounding, (N,) bool."""
-    double_area = np.linalg.norm(np.cross(b - a, c - a), axis=1)
-    longest2 = np.max([_dot(b - a, b - a), _dot(c - b, c - b), _dot(a - c, a - c)], axis=0)
-    return double_area <= _DEGENERATE_RATIO * longest2
-
-
-def _closest_points_on_segments(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Closest point (N, 3) on segment (a_i, b_i) to each p_i."""
-    ab = b - a
-    length2 = _dot(ab, ab)
-    t = np.divide(_dot(p - a, ab), length2, out=np.zeros_like(length2), where=length2 > 0)
-    return a + np.clip(t, 0.0, 1.0)[:, None] * ab
+    n = a.shape[0]
+    degenerate = np.zeros(n, dtype=np.bool_)
+    _triangles.triangle_rows(a, b, c, np.zeros((n, 15)), degenerate)
+    return degenerate
 
 
 def _summary(values: np.ndarray) -> dict:

@@ -13,49 +13,9 @@ import numpy as np
 
 from ..neighbours import spatial_order
 from ._jit import jit, jit_parallel, prange
+from .triangles import closest_point_on_triangle, triangle_rows
 
 LEAF_SIZE = 4
-
-
-@jit
-def _closest_point_on_segment(px, py, pz, t, i, j):
-    # Projection of p onto the line through corners i and j of row t, clamped to the segment.
-    ax, ay, az = t[3 * i], t[3 * i + 1], t[3 * i + 2]
-    ux, uy, uz = t[3 * j] - ax, t[3 * j + 1] - ay, t[3 * j + 2] - az
-    length2 = ux * ux + uy * uy + uz * uz
-    s = 0.0
-    if length2 > 0.0:
-        s = min(max(((px - ax) * ux + (py - ay) * uy + (pz - az) * uz) / length2, 0.0), 1.0)
-    qx, qy, qz = ax + s * ux, ay + s * uy, az + s * uz
-    return qx, qy, qz, (px - qx) ** 2 + (py - qy) ** 2 + (pz - qz) ** 2
-
-
-@jit
-def _closest_point_on_triangle(px, py, pz, t, degenerate):
-    # Row t = corners a, b, c, then the dual vectors e_b = (ac x n) / |n|^2 and
-    # e_c = (n x ab) / |n|^2 with n = ab x ac: the barycentric coordinates of the projection
-    # of p onto the plane are w_b = e_b . (p - a), w_c = e_c . (p - a) (Ericson 2005, §3.4).
-    # Inside the triangle the projection is the closest point; outside, the closest point
-    # lies on an edge opposite a negative coordinate. A degenerate triangle is its edges.
-    qx, qy, qz, best = px, py, pz, np.inf
-    check_a = check_b = check_c = True
-    if not degenerate:
-        apx, apy, apz = px - t[0], py - t[1], pz - t[2]
-        wb = t[9] * apx + t[10] * apy + t[11] * apz
-        wc = t[12] * apx + t[13] * apy + t[14] * apz
-        wa = 1.0 - wb - wc
-        if wa >= 0.0 and wb >= 0.0 and wc >= 0.0:
-            qx = t[0] + wb * (t[3] - t[0]) + wc * (t[6] - t[0])
-            qy = t[1] + wb * (t[4] - t[1]) + wc * (t[7] - t[1])
-            qz = t[2] + wb * (t[5] - t[2]) + wc * (t[8] - t[2])
-            return qx, qy, qz, (px - qx) ** 2 + (py - qy) ** 2 + (pz - qz) ** 2
-        check_a, check_b, check_c = wa < 0.0, wb < 0.0, wc < 0.0
-    for corner, i, j in ((check_a, 1, 2), (check_b, 2, 0), (check_c, 0, 1)):
-        if corner:
-            x, y, z, d2 = _closest_point_on_segment(px, py, pz, t, i, j)
-            if d2 < best:
-                qx, qy, qz, best = x, y, z, d2
-    return qx, qy, qz, best
 
 
 @jit
@@ -129,18 +89,19 @@ def _median_split(centres, order, start, count):
 
 
 @jit_parallel
-def _closest_point_rows(
-    points, triangles, degenerate, boxes, leaf_start, leaf_count, closest, slot, distance
+def _closest_face_rows(
+    points, triangles, degenerate, boxes, leaf_start, leaf_count, slot, bary, distance2
 ):
-    # For each point, the minimum over triangles T of |p - q(p, T)|, found by branch and
+    # For each point, the minimum over triangles T of |p - q(p, T)|^2, found by branch and
     # bound over the boxes: a subtree is skipped when its box is no nearer than the best
-    # triangle so far. `triangles` (S, 15) are in leaf order (corners, then the two dual
-    # vectors); `slot` gets the row. Rows flagged `degenerate` (S,) count as their edges.
+    # triangle so far. `triangles` (S, 15) are the rows of closest_point_on_triangle in
+    # leaf order, `degenerate` (S,) their flags; `slot` gets the row, `bary` the
+    # barycentric coordinates of the closest point in it.
     n_leaves = leaf_start.shape[0]
     for i in prange(points.shape[0]):
         px, py, pz = points[i, 0], points[i, 1], points[i, 2]
         best, best_slot = np.inf, -1
-        bx, by, bz = px, py, pz
+        bu, bv, bw = 1.0, 0.0, 0.0
         stack = np.zeros(128, dtype=np.int64)  # depth <= log2(n_leaves) + 1 < 64
         stack_distance = np.zeros(128)
         stack[0] = 1
@@ -153,12 +114,10 @@ def _closest_point_rows(
             if node >= n_leaves:
                 first = leaf_start[node - n_leaves]
                 for s in range(first, first + leaf_count[node - n_leaves]):
-                    qx, qy, qz, d2 = _closest_point_on_triangle(
-                        px, py, pz, triangles[s], degenerate[s]
-                    )
+                    d2, u, v, w = closest_point_on_triangle(px, py, pz, triangles[s], degenerate[s])
                     if d2 < best:
                         best, best_slot = d2, s
-                        bx, by, bz = qx, qy, qz
+                        bu, bv, bw = u, v, w
                 continue
             near, far = 2 * node, 2 * node + 1
             d_near = _box_distance2(px, py, pz, boxes, near)
@@ -175,18 +134,19 @@ def _closest_point_rows(
             if d_near < best:
                 stack[top], stack_distance[top] = near, d_near
                 top += 1
-        closest[i, 0], closest[i, 1], closest[i, 2] = bx, by, bz
         slot[i] = best_slot
-        distance[i] = np.sqrt(best)
+        bary[i, 0], bary[i, 1], bary[i, 2] = bu, bv, bw
+        distance2[i] = best
 
 
-def build_hierarchy(vertices, faces, degenerate):
+def build_hierarchy(vertices, faces):
     """Return the hierarchy over (F, 3) `faces`: triangles in leaf order and node boxes.
 
-    Returns ``triangles`` (F, 15) float64 (corners a, b, c and the dual vectors e_b, e_c
-    of each, zero for faces flagged in `degenerate`), ``order`` (F,) int64
-    (the face of each row), ``boxes`` (2L, 6) float64 (lo, hi per node; inverted for an
-    empty node, so no query enters it), and ``leaf_start``, ``leaf_count`` (L,) int64.
+    Returns ``triangles`` (F, 15) float64 (the rows of
+    :func:`~zeroset._kernels.triangles.closest_point_on_triangle`) with their
+    ``degenerate`` flags (F,) bool, ``order`` (F,) int64 (the face of each row), ``boxes``
+    (2L, 6) float64 (lo, hi per node; inverted for an empty node, so no query enters it),
+    and ``leaf_start``, ``leaf_count`` (L,) int64.
     """
     corners = vertices[faces]
     tri_lo, tri_hi = corners.min(axis=1), corners.max(axis=1)
@@ -209,44 +169,41 @@ def build_hierarchy(vertices, faces, degenerate):
         boxes[nodes, :3] = np.minimum(boxes[2 * nodes, :3], boxes[2 * nodes + 1, :3])
         boxes[nodes, 3:] = np.maximum(boxes[2 * nodes, 3:], boxes[2 * nodes + 1, 3:])
         width //= 2
-    corners = corners[order]
-    ab, ac = corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]
-    normal = np.cross(ab, ac)
-    length2 = np.einsum("ij,ij->i", normal, normal)
-    scale = np.divide(1.0, length2, out=np.zeros_like(length2), where=~degenerate[order])
-    duals = np.cross(ac, normal) * scale[:, None], np.cross(normal, ab) * scale[:, None]
-    triangles = np.ascontiguousarray(np.concatenate([corners.reshape(-1, 9), *duals], axis=1))
-    return triangles, order, boxes, leaf_start, leaf_count
+    a, b, c = (np.ascontiguousarray(corners[order, k]) for k in range(3))
+    triangles, degenerate = np.zeros((n_faces, 15)), np.zeros(n_faces, dtype=np.bool_)
+    triangle_rows(a, b, c, triangles, degenerate)
+    return triangles, degenerate, order, boxes, leaf_start, leaf_count
 
 
-def closest_points_on_mesh(points, vertices, faces, degenerate):
-    """Return the closest point (N, 3), its face (N,) int64 and the distance (N,) per point.
+def closest_points_on_mesh(points, vertices, faces):
+    """Return the face (N,) int64 holding the closest point to each point, the point's
+    barycentric coordinates (N, 3) in it (corner order) and the squared distance (N,).
 
     `points` (N, 3) and `vertices` (M, 3) are float64, `faces` (F, 3) int64 with F >= 1;
-    faces flagged in `degenerate` (F,) bool count as their three edges. Queries run in
-    Morton order, so neighbouring iterations walk the same part of the tree.
+    a degenerate face counts as its three edges. Queries run in Morton order, so
+    neighbouring iterations walk the same part of the tree.
     """
-    triangles, face_of_slot, boxes, leaf_start, leaf_count = build_hierarchy(
-        vertices, faces, degenerate
+    triangles, degenerate, face_of_slot, boxes, leaf_start, leaf_count = build_hierarchy(
+        vertices, faces
     )
     query = spatial_order(points)
     n = points.shape[0]
-    closest = np.zeros((n, 3))
     slot = np.zeros(n, dtype=np.int64)
-    distance = np.zeros(n)
-    _closest_point_rows(
+    bary = np.zeros((n, 3))
+    distance2 = np.zeros(n)
+    _closest_face_rows(
         np.ascontiguousarray(points[query]),
         triangles,
-        np.ascontiguousarray(degenerate[face_of_slot]),
+        degenerate,
         boxes,
         leaf_start,
         leaf_count,
-        closest,
         slot,
-        distance,
+        bary,
+        distance2,
     )
-    out_closest, out_face, out_distance = np.zeros((n, 3)), np.zeros(n, np.int64), np.zeros(n)
-    out_closest[query] = closest
+    out_face, out_bary, out_distance2 = np.zeros(n, np.int64), np.zeros((n, 3)), np.zeros(n)
     out_face[query] = face_of_slot[slot]
-    out_distance[query] = distance
-    return out_closest, out_face, out_distance
+    out_bary[query] = bary
+    out_distance2[query] = distance2
+    return out_face, out_bary, out_distance2

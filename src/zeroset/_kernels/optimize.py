@@ -24,6 +24,7 @@ least as much as computed.
 import numpy as np
 
 from ._jit import jit
+from .triangles import closest_point_on_triangle, set_triangle
 
 ACCEPTED = 0
 ENERGY_INCREASE = 1
@@ -36,74 +37,6 @@ SWAP = 2
 
 H = -1  # corner index standing for the new vertex in candidate faces
 _LOCAL_ITERATIONS = 2  # alternations of projection and vertex solve per candidate start
-
-
-@jit
-def project_to_triangle(px, py, pz, ax, ay, az, bx, by, bz, cx, cy, cz):
-    # Closest point of triangle abc to p, by Voronoi regions (Ericson 2005, §5.1.5).
-    # Returns the squared distance and the barycentric coordinates (u, v, w) of the foot.
-    abx, aby, abz = bx - ax, by - ay, bz - az
-    acx, acy, acz = cx - ax, cy - ay, cz - az
-    apx, apy, apz = px - ax, py - ay, pz - az
-    d1 = abx * apx + aby * apy + abz * apz
-    d2 = acx * apx + acy * apy + acz * apz
-    u, v, w = 1.0, 0.0, 0.0
-    if d1 <= 0.0 and d2 <= 0.0:
-        u, v, w = 1.0, 0.0, 0.0
-    else:
-        bpx, bpy, bpz = px - bx, py - by, pz - bz
-        d3 = abx * bpx + aby * bpy + abz * bpz
-        d4 = acx * bpx + acy * bpy + acz * bpz
-        cpx, cpy, cpz = px - cx, py - cy, pz - cz
-        d5 = abx * cpx + aby * cpy + abz * cpz
-        d6 = acx * cpx + acy * cpy + acz * cpz
-        vc = d1 * d4 - d3 * d2
-        vb = d5 * d2 - d1 * d6
-        va = d3 * d6 - d5 * d4
-        if d3 >= 0.0 and d4 <= d3:
-            u, v, w = 0.0, 1.0, 0.0
-        elif d6 >= 0.0 and d5 <= d6:
-            u, v, w = 0.0, 0.0, 1.0
-        elif vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:
-            t = d1 / (d1 - d3) if d1 - d3 > 0.0 else 0.0
-            u, v, w = 1.0 - t, t, 0.0
-        elif vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:
-            t = d2 / (d2 - d6) if d2 - d6 > 0.0 else 0.0
-            u, v, w = 1.0 - t, 0.0, t
-        elif va <= 0.0 and d4 - d3 >= 0.0 and d5 - d6 >= 0.0:
-            t = (d4 - d3) / ((d4 - d3) + (d5 - d6)) if (d4 - d3) + (d5 - d6) > 0.0 else 0.0
-            u, v, w = 0.0, 1.0 - t, t
-        else:
-            total = va + vb + vc
-            if total > 0.0:
-                v, w = vb / total, vc / total
-                u = 1.0 - v - w
-            else:  # a degenerate triangle whose regions all failed: take its nearest corner
-                da = apx * apx + apy * apy + apz * apz
-                db = bpx * bpx + bpy * bpy + bpz * bpz
-                dc = cpx * cpx + cpy * cpy + cpz * cpz
-                if da <= db and da <= dc:
-                    u, v, w = 1.0, 0.0, 0.0
-                elif db <= dc:
-                    u, v, w = 0.0, 1.0, 0.0
-                else:
-                    u, v, w = 0.0, 0.0, 1.0
-    qx = u * ax + v * bx + w * cx
-    qy = u * ay + v * by + w * cy
-    qz = u * az + v * bz + w * cz
-    return (px - qx) ** 2 + (py - qy) ** 2 + (pz - qz) ** 2, u, v, w
-
-
-@jit
-def project_rows(points, a, b, c, distance2, bary):
-    # project_to_triangle for every row: (N, 3) points and corners; fills (N,) and (N, 3).
-    for n in range(points.shape[0]):
-        d2, u, v, w = project_to_triangle(
-            points[n, 0], points[n, 1], points[n, 2],
-            a[n, 0], a[n, 1], a[n, 2], b[n, 0], b[n, 1], b[n, 2], c[n, 0], c[n, 1], c[n, 2],
-        )  # fmt: skip
-        distance2[n] = d2
-        bary[n, 0], bary[n, 1], bary[n, 2] = u, v, w
 
 
 # ------------------------------------------------------------------ building and reading
@@ -383,19 +316,24 @@ def _project_local(state, pts, new_faces, n_new, near, h, best_face, best_bary, 
     # whose bounding sphere is no nearer is skipped. Fewer faces can only over-estimate
     # a distance.
     V, X = state[0], state[6]
-    corners = np.zeros((n_new, 9))
+    triangles = np.zeros((n_new, 15))
+    degenerate = np.zeros(n_new, dtype=np.bool_)
     sphere = np.zeros((n_new, 4))
     for t in range(n_new):
-        for c in range(3):
-            for axis in range(3):
-                corners[t, 3 * c + axis] = _corner(V, new_faces[t, c], h, axis)
+        row = triangles[t]
+        va, vb, vc = new_faces[t, 0], new_faces[t, 1], new_faces[t, 2]
+        degenerate[t] = set_triangle(
+            row, _corner(V, va, h, 0), _corner(V, va, h, 1), _corner(V, va, h, 2),
+            _corner(V, vb, h, 0), _corner(V, vb, h, 1), _corner(V, vb, h, 2),
+            _corner(V, vc, h, 0), _corner(V, vc, h, 1), _corner(V, vc, h, 2),
+        )  # fmt: skip
         for axis in range(3):
-            sphere[t, axis] = (corners[t, axis] + corners[t, 3 + axis] + corners[t, 6 + axis]) / 3.0
+            sphere[t, axis] = (row[axis] + row[3 + axis] + row[6 + axis]) / 3.0
         radius2 = 0.0
         for c in range(3):
             r2 = 0.0
             for axis in range(3):
-                r2 += (corners[t, 3 * c + axis] - sphere[t, axis]) ** 2
+                r2 += (row[3 * c + axis] - sphere[t, axis]) ** 2
             radius2 = max(radius2, r2)
         sphere[t, 3] = np.sqrt(radius2)
     energy = 0.0
@@ -405,9 +343,8 @@ def _project_local(state, pts, new_faces, n_new, near, h, best_face, best_bary, 
         best = np.inf
         guess = best_face[q]
         if guess >= 0:
-            k = corners[guess]
-            best, u, v, w = project_to_triangle(
-                px, py, pz, k[0], k[1], k[2], k[3], k[4], k[5], k[6], k[7], k[8]
+            best, u, v, w = closest_point_on_triangle(
+                px, py, pz, triangles[guess], degenerate[guess]
             )
             best_bary[q, 0], best_bary[q, 1], best_bary[q, 2] = u, v, w
         for t in range(n_new):
@@ -421,10 +358,7 @@ def _project_local(state, pts, new_faces, n_new, near, h, best_face, best_bary, 
             )
             if gap > 0.0 and gap * gap >= best:
                 continue
-            k = corners[t]
-            d2, u, v, w = project_to_triangle(
-                px, py, pz, k[0], k[1], k[2], k[3], k[4], k[5], k[6], k[7], k[8]
-            )
+            d2, u, v, w = closest_point_on_triangle(px, py, pz, triangles[t], degenerate[t])
             if d2 < best:
                 best = d2
                 best_face[q] = t

@@ -16,8 +16,7 @@ import numpy as np
 from scipy import sparse
 from scipy.sparse.linalg import splu
 
-from .._kernels import optimize as _kernels
-from ..evaluate import closest_on_arrays
+from .._kernels import evaluate as _kernels
 from ..topology import edge_face_pairs, fold_cosines
 from .energy import distance_energy, spring_energy
 
@@ -51,16 +50,12 @@ class Projection:
 def project(points: np.ndarray, vertices: np.ndarray, faces: np.ndarray) -> Projection:
     """Project each point (N, 3) exactly onto the mesh (vertices (M, 3), faces (F, 3)).
 
-    The nearest face comes from the bounding-volume hierarchy of :mod:`zeroset.evaluate`
-    (exact over all faces, so no point is lost because its foot falls outside a triangle or
-    above a peak); the barycentric coordinates from the closest point on that face.
+    One search of the bounding-volume hierarchy of :mod:`zeroset.evaluate` gives the
+    nearest face, exact over all faces (so no point is lost because its foot falls outside
+    a triangle or above a peak), the barycentric coordinates of the closest point in it and
+    the squared distance.
     """
-    _, face, _ = closest_on_arrays(points, vertices, faces)
-    corners = vertices[faces]
-    distance2 = np.zeros(points.shape[0])
-    bary = np.zeros((points.shape[0], 3))
-    a, b, c = (np.ascontiguousarray(corners[face, k]) for k in range(3))
-    _kernels.project_rows(points, a, b, c, distance2, bary)
+    face, bary, distance2 = _kernels.closest_points_on_mesh(points, vertices, faces)
     return Projection(face=face, bary=bary, distance2=distance2)
 
 
