@@ -1,6 +1,7 @@
 """Local moves of the mesh optimisation: edge collapse, split and swap (Hoppe et al. 1993, §4).
 
-The mesh lives in flat arrays with spare capacity, bundled in one tuple ``state``:
+The mesh lives in flat arrays with spare capacity, bundled in one named tuple ``state``
+(:class:`State`; Numba compiles attribute access to its fields):
 
     V (Vc, 3) float64    vertex positions          alive_v (Vc,) bool
     F (Fc, 3) int64      faces, counter-clockwise   alive_f (Fc,) bool
@@ -21,6 +22,8 @@ of the faces over-estimates each distance, so an accepted move lowers the true e
 least as much as computed.
 """
 
+from collections import namedtuple
+
 import numpy as np
 
 from ._jit import jit
@@ -38,13 +41,15 @@ SWAP = 2
 H = -1  # corner index standing for the new vertex in candidate faces
 _LOCAL_ITERATIONS = 2  # alternations of projection and vertex solve per candidate start
 
+State = namedtuple("State", "V F alive_v alive_f vf deg X pf pb pd head nxt prv count sizes")
+
 
 # ------------------------------------------------------------------ building and reading
 
 
 @jit
 def build_state(vertices, faces, points, face_of_point, bary, distance2, width, spare_v, spare_f):
-    """Return the state tuple for a mesh and an assignment of points to faces.
+    """Return the State for a mesh and an assignment of points to faces.
 
     `width` is the most faces a vertex may have; `spare_v`, `spare_f` the extra slots that
     splits may fill. Faces with a vertex of more than `width` faces are not allowed.
@@ -74,7 +79,7 @@ def build_state(vertices, faces, points, face_of_point, bary, distance2, width, 
     for p in range(n_p):
         _link(head, nxt, prv, count, pf[p], p)
     sizes = np.array([n_v, n_f, np.count_nonzero(alive_v)], dtype=np.int64)
-    return (
+    return State(
         V, F, alive_v, alive_f, vf, deg, points, pf, bary.copy(), distance2.copy(),
         head, nxt, prv, count, sizes,
     )  # fmt: skip
@@ -106,7 +111,7 @@ def _unlink(head, nxt, prv, count, f, p):
 @jit
 def edges_of(state):
     """Return the (E, 2) undirected edges (a < b) of the live faces, each once."""
-    F, alive_f = state[1], state[3]
+    F, alive_f = state.F, state.alive_f
     n = 0
     out = np.zeros((3 * F.shape[0], 2), dtype=np.int64)
     for f in range(F.shape[0]):
@@ -138,7 +143,7 @@ def _contains(F, f, v):
 @jit
 def _edge_faces(state, i, j, out):
     # Faces holding both i and j, into out; returns how many.
-    F, vf, deg = state[1], state[4], state[5]
+    F, vf, deg = state.F, state.vf, state.deg
     n = 0
     for k in range(deg[i]):
         f = vf[i, k]
@@ -153,7 +158,7 @@ def _edge_faces(state, i, j, out):
 def _manifold_edge(state, i, j, out):
     # The faces of edge (i, j) into out and their number (1 or 2); 0 when i, j are not two
     # live vertices joined by a manifold edge.
-    alive_v = state[2]
+    alive_v = state.alive_v
     if i == j or not alive_v[i] or not alive_v[j]:
         return 0
     n = _edge_faces(state, i, j, out)
@@ -164,7 +169,7 @@ def _manifold_edge(state, i, j, out):
 def _neighbours(state, v, out):
     # Distinct vertices sharing an edge with v, into out; returns how many and whether v
     # lies on the boundary (some edge of v belongs to one face only).
-    F, vf, deg = state[1], state[4], state[5]
+    F, vf, deg = state.F, state.vf, state.deg
     n = 0
     seen = np.zeros(out.shape[0], dtype=np.int64)
     for k in range(deg[v]):
@@ -246,7 +251,7 @@ def _worst_fold(state, region, n_region, new_faces, n_new, h, min_cos):
     # the candidate faces `new_faces` (H = the new vertex at h), and how many of those are
     # below min_cos; `region` are the faces they replace. (-2, -1) if a candidate face is
     # degenerate.
-    V, F, vf, deg = state[0], state[1], state[4], state[5]
+    V, F, vf, deg = state.V, state.F, state.vf, state.deg
     worst = 1.0
     bad = 0
     for t in range(n_new):
@@ -281,7 +286,7 @@ def _worst_fold(state, region, n_region, new_faces, n_new, h, min_cos):
 @jit
 def _region_fold(state, region, n_region, min_cos):
     # The same as _worst_fold over the region faces themselves, before the move.
-    F = state[1]
+    F = state.F
     faces = np.zeros((n_region, 3), dtype=np.int64)
     for r in range(n_region):
         faces[r] = F[region[r]]
@@ -291,7 +296,7 @@ def _region_fold(state, region, n_region, min_cos):
 @jit
 def _gather_points(state, region, n_region):
     # The points assigned to the region faces, and the sum of their squared distances.
-    pd, head, nxt, count = state[9], state[10], state[11], state[13]
+    pd, head, nxt, count = state.pd, state.head, state.nxt, state.count
     total = 0
     for r in range(n_region):
         total += count[region[r]]
@@ -315,7 +320,7 @@ def _project_local(state, pts, new_faces, n_new, near, h, best_face, best_bary, 
     # projected onto the faces t with near[g, t] only, g first, so that every other face
     # whose bounding sphere is no nearer is skipped. Fewer faces can only over-estimate
     # a distance.
-    V, X = state[0], state[6]
+    V, X = state.V, state.X
     triangles = np.zeros((n_new, 15))
     degenerate = np.zeros(n_new, dtype=np.bool_)
     sphere = np.zeros((n_new, 4))
@@ -384,7 +389,7 @@ def _adjacent(new_faces, n_new):
 @jit
 def _guesses(state, pts, global_face, n_new):
     # For each point, the candidate face that replaces the face it lies on now (-1: none).
-    pf = state[7]
+    pf = state.pf
     face = np.full(pts.shape[0], -1, dtype=np.int64)
     for q in range(pts.shape[0]):
         for t in range(n_new):
@@ -414,7 +419,7 @@ def _fit_vertex(
     # Stops early once the energy is so far above `target` (what the move must beat) that
     # more alternations, each gaining less than the last, cannot reach it.
     # Returns the local energy (distances plus springs) and the position, in h.
-    V, X = state[0], state[6]
+    V, X = state.V, state.X
     h = start.copy()
     energy = _project_local(state, pts, new_faces, n_new, near, h, face, bary, d2)
     energy += kappa * _spring(V, h, ring, n_ring)
@@ -490,15 +495,8 @@ def _best_fit(
 @jit
 def _reassign(state, pts, global_face, face, bary, d2):
     # Move each point to its new face with its new projection.
-    pf, pb, pd, head, nxt, prv, count = (
-        state[7],
-        state[8],
-        state[9],
-        state[10],
-        state[11],
-        state[12],
-        state[13],
-    )
+    pf, pb, pd, head, nxt, prv = state.pf, state.pb, state.pd, state.head, state.nxt, state.prv
+    count = state.count
     for q in range(pts.shape[0]):
         p = pts[q]
         _unlink(head, nxt, prv, count, pf[p], p)
@@ -532,7 +530,8 @@ def try_collapse(state, i, j, kappa, c_rep, min_cos, force, result):
     `result` (2,) float64 gets the energy change and the number of the surviving vertex.
     Returns an outcome code. With `force`, any legal move is made.
     """
-    V, F, alive_v, alive_f, vf, deg = state[0], state[1], state[2], state[3], state[4], state[5]
+    V, F, vf, deg = state.V, state.F, state.vf, state.deg
+    alive_v, alive_f = state.alive_v, state.alive_f
     width = vf.shape[1]
     edge = np.zeros(4, dtype=np.int64)
     n_edge = _manifold_edge(state, i, j, edge)
@@ -560,7 +559,7 @@ def try_collapse(state, i, j, kappa, c_rep, min_cos, force, result):
         if _edge_faces(state, i, k, probe) == 1 and _edge_faces(state, j, k, probe) == 1:
             return ILLEGAL_TOPOLOGY
     # The mesh keeps more than a tetrahedron (or a triangle, at a boundary).
-    if state[14][2] <= (3 if boundary_i or boundary_j else 4):
+    if state.sizes[2] <= (3 if boundary_i or boundary_j else 4):
         return ILLEGAL_TOPOLOGY
     if deg[i] + deg[j] - 2 * n_edge > width:
         return ILLEGAL_TOPOLOGY
@@ -649,7 +648,7 @@ def try_collapse(state, i, j, kappa, c_rep, min_cos, force, result):
         _add_face(vf, deg, i, f)
     deg[j] = 0
     alive_v[j] = False
-    state[14][2] -= 1
+    state.sizes[2] -= 1
     _reassign(state, pts, global_face, face, bary, d2)
     return ACCEPTED
 
@@ -660,8 +659,9 @@ def try_split(state, i, j, kappa, c_rep, min_cos, force, result):
 
     `result` gets the energy change and the new vertex. Returns an outcome code.
     """
-    V, F, alive_v, alive_f, vf, deg = state[0], state[1], state[2], state[3], state[4], state[5]
-    sizes = state[14]
+    V, F, vf, deg = state.V, state.F, state.vf, state.deg
+    alive_v, alive_f = state.alive_v, state.alive_f
+    sizes = state.sizes
     width = vf.shape[1]
     edge = np.zeros(4, dtype=np.int64)
     n_edge = _manifold_edge(state, i, j, edge)
@@ -741,7 +741,7 @@ def try_swap(state, i, j, kappa, c_rep, min_cos, force, result):
 
     `result` gets the energy change. Returns an outcome code.
     """
-    V, F, alive_v, vf, deg = state[0], state[1], state[2], state[4], state[5]
+    V, F, vf, deg, alive_v = state.V, state.F, state.vf, state.deg, state.alive_v
     width = vf.shape[1]
     if i == j or not alive_v[i] or not alive_v[j]:
         return ILLEGAL_TOPOLOGY
@@ -804,7 +804,7 @@ def try_swap(state, i, j, kappa, c_rep, min_cos, force, result):
 @jit
 def _push_star(state, v, queue, tail, capacity, head):
     # Queue every edge of the faces around v, each at a random place among those waiting.
-    F, vf, deg = state[1], state[4], state[5]
+    F, vf, deg = state.F, state.vf, state.deg
     for k in range(deg[v]):
         f = vf[v, k]
         for c in range(3):
@@ -838,7 +838,7 @@ def run_pass(state, edges, kappa, c_rep, min_cos, seed, max_attempts, tally):
     head, tail = 0, n
     result = np.zeros(2)
     probe = np.zeros(4, dtype=np.int64)
-    alive_v = state[2]
+    alive_v = state.alive_v
     total = 0.0
     attempts = 0
     while head < tail and attempts < max_attempts:

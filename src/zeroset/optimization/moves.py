@@ -124,18 +124,18 @@ class MeshState:
     @property
     def distance2(self) -> np.ndarray:
         """(N,) squared distance of every point to the face it is assigned to."""
-        return self._state[9].copy()
+        return self._state.pd.copy()
 
     @property
     def vertex_slots(self) -> np.ndarray:
         """(M,) int64: the index in the state (as the ``try_*`` methods take it) of each
         vertex of :meth:`to_mesh`."""
-        return np.flatnonzero(self._state[2])
+        return np.flatnonzero(self._state.alive_v)
 
     def to_mesh(self) -> Mesh:
         """The live vertices and faces as a compact Mesh."""
-        vertices, faces, alive_v, alive_f = self._state[:4]
+        state = self._state
         used = self.vertex_slots
-        index = np.full(alive_v.shape[0], -1, dtype=np.int64)
+        index = np.full(state.alive_v.shape[0], -1, dtype=np.int64)
         index[used] = np.arange(used.size)
-        return Mesh(vertices=vertices[used].copy(), faces=index[faces[alive_f]])
+        return Mesh(vertices=state.V[used].copy(), faces=index[state.F[state.alive_f]])
