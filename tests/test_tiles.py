@@ -7,10 +7,19 @@ import numpy as np
 import pytest
 
 from tests.test_sheets import pipe_rack
-from zeroset import ReconstructionError, SurfaceWarning, io, reconstruct, topology
+from zeroset import (
+    ReconstructionConfig,
+    ReconstructionError,
+    SurfaceWarning,
+    io,
+    reconstruct,
+    topology,
+)
 from zeroset.cli import main
+from zeroset.neighbours import spatial_order
+from zeroset.pipeline import choose_parameters
 from zeroset.synthetic import sample_sphere, sample_tee, sample_torus, scan_pipe
-from zeroset.tiles import _agree, plan_tiles, reconstruct_tiled
+from zeroset.tiles import _agree, _estimate_sampled, plan_tiles, reconstruct_tiled
 
 
 @pytest.fixture(scope="module")
@@ -232,3 +241,17 @@ def test_tiles_whose_neighbourhoods_reach_further_widen_their_halos(client):
     assert tiled.stats["tiles_grown"] > 0 and tiled.stats["tiles_failed"] == 0
     assert tiled.stats["seam_vertex_gap"] < 1e-12
     _same_mesh(tiled.mesh, untiled.mesh)
+
+
+@pytest.mark.parametrize("from_file", [False, True], ids=["array", "file"])
+def test_a_cloud_too_large_to_hold_gets_the_parameters_of_all_its_points(tmp_path, from_file):
+    # Measured at 20,000 points drawn in one pass, on the points near them read in another.
+    points = sample_torus(300_000, noise=0.003, rng=7).points
+    offset = (points.min(axis=0) + points.max(axis=0)) / 2.0
+    config = ReconstructionConfig()
+    local = points - offset
+    whole = choose_parameters(local[spatial_order(local)], config)[0]
+    source = io.write_points(tmp_path / "cloud.ply", points) if from_file else points
+    sampled = _estimate_sampled(source, len(points), offset, config, chunk_points=50_000)
+    for name in ("spacing", "noise", "rho_delta", "cube_size", "quadric_noise"):
+        assert getattr(sampled, name) == pytest.approx(getattr(whole, name), rel=0.03), name

@@ -7,15 +7,20 @@ import numpy as np
 from ._validate import positive, require_rng
 from .density import SECTORS, SECTORS_NEEDED, plane_variance, sector_radius
 from .errors import InputError, ReconstructionError
-from .jets import quadric_noise
+from .jets import NOISE_K, quadric_noise
 from .neighbours import build_tree
 from .types import Parameters
 
-__all__ = ["estimate_parameters"]
+__all__ = ["estimate_parameters", "neighbours_read"]
 
 #: Points, and neighbours of each, used for the direction-balanced spacing and the noise.
 WIDE_ROWS = 2_000
 WIDE_K = 64
+
+
+def neighbours_read(k: int = 12) -> int:
+    """How many nearest points of each measured point `estimate_parameters` reads."""
+    return max(k + 1, WIDE_K, NOISE_K)
 
 
 def estimate_parameters(
@@ -32,6 +37,7 @@ def estimate_parameters(
     averaging_cell: float | None = None,
     min_neighbours: int = 4,
     max_samples: int = 20_000,
+    rows=None,
     rng=None,
 ) -> Parameters:
     """Choose rho+delta, the cube size and the cell the points are averaged in.
@@ -69,6 +75,9 @@ def estimate_parameters(
         Outlier threshold: fewer other points within rho+delta make a point an outlier.
     max_samples : int
         Points whose neighbourhoods are measured (a seeded random subset).
+    rows : (S,) array_like of int, optional
+        Those points, instead of a random subset (the first `max_samples`); their nearest
+        ``neighbours_read(k)`` must be among `points`.
     rng : numpy.random.Generator or int or None
 
     Returns
@@ -100,7 +109,9 @@ def estimate_parameters(
     tree = build_tree(points) if tree is None else tree
     n = points.shape[0]
     # A seeded random order: the first rows of it are spread over the whole cloud.
-    rows = require_rng(rng).permutation(n)[:max_samples]
+    if rows is None:
+        rows = require_rng(rng).permutation(n)
+    rows = np.asarray(rows, dtype=np.int64)[:max_samples]
     kk = min(k + 1, n)
     distances, indices = tree.query(points[rows], k=kk, workers=-1)
     kth = distances[:, -1]

@@ -484,12 +484,14 @@ def local_viewpoints(viewpoints, rows, offset, config: ReconstructionConfig):
     return None
 
 
-def choose_parameters(local: np.ndarray, config: ReconstructionConfig, tree=None):
+def choose_parameters(local: np.ndarray, config: ReconstructionConfig, tree=None, rows=None):
     """Stage "parameters": `zeroset.parameters.estimate_parameters` with `config`'s knobs,
-    on points (N, 3) and their k-d `tree` where it is built."""
+    on points (N, 3) and their k-d `tree` where it is built, measured at the points `rows`
+    where they are given."""
     parameters = estimate_parameters(
         local,
         tree=tree,
+        rows=rows,
         k=config.radius_k,
         quantile=config.quantile,
         noise_factor=config.noise_factor,

@@ -30,8 +30,9 @@ from .contour import keyed_marching_cubes
 from .density import RADIUS_CAP
 from .errors import InputError, ReconstructionError, SurfaceWarning
 from .jets import REACH, concatenate_jets, select_jets
-from .neighbours import spatial_order
+from .neighbours import build_tree, spatial_order
 from .orientation import DIRECTIONS, root_rule
+from .parameters import neighbours_read
 from .pipeline import (
     DataSupport,
     LocalCloud,
@@ -45,6 +46,7 @@ from .pipeline import (
     mesh_stats,
     warn_surface_changes,
 )
+from .prepare import CHUNK_POINTS
 from .prepare import crop as inside
 from .topology import is_consistently_oriented, is_edge_manifold
 from .types import Jets, Mesh, Parameters
@@ -73,8 +75,15 @@ GROW_ROUNDS = 3
 AUTO_TILE_POINTS = 2_000_000
 #: Clouds of at most this many points (inside the crop) get their parameters from all of
 #: them in one task, as `zeroset.reconstruct` chooses them, so that the tiled mesh is the
-#: untiled one; a larger cloud takes the estimate of its median tile.
+#: untiled one; a larger cloud from the SAMPLES points it measures them at and every point
+#: within reach of those, read in chunks (`_estimate_sampled`).
 WHOLE_CLOUD_POINTS = 5_000_000
+#: Points of a larger cloud at which the parameters are measured (as `zeroset.reconstruct`
+#: measures them at a random 20,000), the share of them whose neighbourhoods must lie
+#: wholly within the points read, and the most passes over the file that reach for them.
+SAMPLES = 20_000
+WHOLE_NEIGHBOURHOODS = 0.995
+READ_ROUNDS = 6
 #: Fewest points a tile must hold to be reconstructed; emptier tiles hold no surface.
 MIN_TILE_POINTS = 32
 #: Largest distance, over the cube size, between two tiles' copies of a shared vertex
@@ -237,7 +246,8 @@ def reconstruct_tiled(
         Use these instead of estimating them. By default a cloud of at most
         ``WHOLE_CLOUD_POINTS`` gets those `zeroset.reconstruct` chooses, from all its
         points, and the tiled mesh is the untiled one (same vertices and faces); a larger
-        one gets the estimate of its median tile.
+        one gets them measured the same way at points drawn in one pass over its chunks
+        (`_estimate_sampled`).
     progress : bool
         Show a progress bar over the tiles when stderr is a terminal.
     allow_gaps : bool
@@ -284,11 +294,8 @@ def reconstruct_tiled(
     timings["bounds"] = time.perf_counter() - start
     if parameters is None:
         start = time.perf_counter()
-        if n_points <= WHOLE_CLOUD_POINTS:
-            task = client.submit(_estimate_whole, source, low, high, offset, config, pure=False)
-            parameters = task.result()
-        else:
-            parameters = _estimate(client, source, config, low, high, offset, counts, progress)
+        estimate = _estimate_whole if n_points <= WHOLE_CLOUD_POINTS else _estimate_sampled
+        parameters = client.submit(estimate, source, n_points, offset, config, pure=False).result()
         timings["parameters"] = time.perf_counter() - start
     # The blended jets reach further than the planes: see zeroset.jets.REACH.
     reach = max(HALO_RADII, REACH) if config.surface == "jets" else HALO_RADII
@@ -432,40 +439,55 @@ def _bounds(source, crop) -> tuple[np.ndarray, np.ndarray, int]:
     return io.point_bounds(source, crop=crop)
 
 
-def _estimate_whole(source, low, high, offset, config) -> Parameters:
+def _estimate_whole(source, n_points, offset, config) -> Parameters:
     """Parameters of every point (a Dask task): those `zeroset.reconstruct` chooses."""
-    points, _ = _read(source, np.r_[low, high], config.crop)
-    local = points - offset
+    local = np.concatenate(list(_chunks(source, config.crop))) - offset
     return choose_parameters(local[spatial_order(local)], config)[0]
 
 
-def _estimate(client, source, config, low, high, offset, counts, progress) -> Parameters:
-    """Parameters estimated in every tile on its own points; the tile of median rho_delta wins."""
-    boxes = []
-    for index in np.ndindex(*(int(c) for c in counts)):
-        lo = low + (high - low) * np.array(index) / counts
-        hi = low + (high - low) * (np.array(index) + 1) / counts
-        boxes.append(np.r_[lo, hi])
-    estimates = _gather(
-        client,
-        [client.submit(_estimate_tile, source, box, offset, config, pure=False) for box in boxes],
-        "parameters",
-        progress,
+def _estimate_sampled(source, n_points, offset, config, chunk_points=CHUNK_POINTS) -> Parameters:
+    """Parameters of a cloud too large to hold (a Dask task), measured as `zeroset.reconstruct`
+    measures them: at ``SAMPLES`` points drawn at random in one pass over its chunks, on
+    every point within reach of them read in another. The reach starts at twice the
+    distance their neighbourhoods would span at the mean density, and doubles until those
+    of ``WHOLE_NEIGHBOURHOODS`` of them lie wholly within it; the others are not used."""
+    rng = np.random.default_rng(config.seed)
+    share = min(1.0, 2.0 * SAMPLES / n_points)
+    drawn = [c[rng.random(len(c)) < share] for c in _chunks(source, config.crop, chunk_points)]
+    samples = np.concatenate(drawn)
+    samples = samples[rng.permutation(len(samples))[:SAMPLES]] - offset
+    wanted = neighbours_read(config.radius_k)
+    tree = build_tree(samples)
+    spacing = float(np.median(tree.query(samples, k=2, workers=-1)[0][:, 1]))
+    reach = 2.0 * spacing * np.sqrt(wanted * len(samples) / n_points)
+    for _ in range(READ_ROUNDS):
+        near = []
+        for chunk in _chunks(source, config.crop, chunk_points):
+            chunk = chunk - offset
+            gap = tree.query(chunk, distance_upper_bound=reach, workers=-1)[0]
+            near.append(chunk[np.isfinite(gap)])
+        local = np.concatenate(near)
+        read = build_tree(local)
+        distances, rows = read.query(samples, k=min(wanted, len(local)), workers=-1)
+        whole = distances[:, -1] <= reach
+        if whole.mean() >= WHOLE_NEIGHBOURHOODS:
+            return choose_parameters(local, config, tree=read, rows=rows[whole, 0])[0]
+        reach *= 2.0
+    raise ReconstructionError(
+        f"the neighbourhoods of only {whole.mean():.1%} of {len(samples)} sample points lie "
+        f"within {reach / 2.0:.4g} of them; pass parameters, or rho_delta and cube_size"
     )
-    estimates = sorted((e for e in estimates if e is not None), key=lambda e: e[0].rho_delta)
-    if not estimates:
-        raise ReconstructionError("no tile holds enough points to estimate the parameters")
-    weights = np.cumsum([count for _, count in estimates])
-    return estimates[int(np.searchsorted(weights, weights[-1] / 2.0))][0]
 
 
-def _estimate_tile(source, box, offset, config) -> tuple[Parameters, int] | None:
-    """Parameters of the points in `box` and their count (a Dask task); None if too few."""
-    points, _ = _read(source, box, config.crop)
-    if len(points) < max(config.k_max, 1000):
-        return None
-    local = points - offset
-    return choose_parameters(local[spatial_order(local)], config)[0], len(points)
+def _chunks(source, crop, chunk_points=CHUNK_POINTS):
+    """The points (n, 3) of `source`, a file or an array, inside `crop` (6,) when given, a
+    chunk of the file at a time."""
+    if isinstance(source, np.ndarray):
+        yield source if crop is None else source[inside(source, crop[:3], crop[3:])]
+        return
+    from . import io
+
+    yield from io.point_chunks(source, crop=crop, chunk_points=chunk_points)
 
 
 def _fit_tile(source, tile: Tile, offset, parameters, config) -> dict | None:

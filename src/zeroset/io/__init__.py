@@ -33,6 +33,7 @@ __all__ = [
     "check_input",
     "check_output",
     "point_bounds",
+    "point_chunks",
     "read_mesh",
     "read_points",
     "read_poses",
@@ -217,24 +218,29 @@ def point_bounds(
     InputError
         As `read_points`, and when no point lies inside `crop`.
     """
+    low, high, count = np.full(3, np.inf), np.full(3, -np.inf), 0
+    for points in point_chunks(path, crop=crop, chunk_points=chunk_points):
+        if len(points):
+            low, high = np.minimum(low, points.min(axis=0)), np.maximum(high, points.max(axis=0))
+            count += len(points)
+    if count == 0:
+        with _about(path, "read"):
+            raise InputError("contains no points" + ("" if crop is None else " inside --crop"))
+    return low, high, count
+
+
+def point_chunks(
+    path: str | os.PathLike, *, crop=None, chunk_points: int = CHUNK_POINTS
+) -> Iterator[np.ndarray]:
+    """The points (n, 3) of a file, a chunk at a time: LAS, LAZ and binary PLY files
+    `chunk_points` at a time, other formats whole; with `crop` (6,), those inside it."""
     target, reader = _existing(path, _POINT_READERS, "point")
     chunks = _POINT_CHUNKS.get(target.suffix.lower())
-    low, high, count = np.full(3, np.inf), np.full(3, -np.inf), 0
     with _about(path, "read"):
         parts = chunks(target, int(chunk_points)) if chunks else [reader(target)]
         for part in parts:
             points = _columns(part)["points"] if len(part["points"]) else np.zeros((0, 3))
-            if crop is not None:
-                points = points[inside(points, crop[:3], crop[3:])]
-            if len(points):
-                low, high = (
-                    np.minimum(low, points.min(axis=0)),
-                    np.maximum(high, points.max(axis=0)),
-                )
-                count += len(points)
-        if count == 0:
-            raise InputError("contains no points" + ("" if crop is None else " inside --crop"))
-    return low, high, count
+            yield points if crop is None else points[inside(points, crop[:3], crop[3:])]
 
 
 def read_poses(path: str | os.PathLike) -> tuple[list[str] | None, np.ndarray]:
