@@ -30,10 +30,42 @@ def propagate_signs(order, predecessors, normals, root_sign):
     return signs
 
 
+def closest_points_on_triangles(p, a, b, c):
+    """Closest point (N, 3) on triangle (a_i, b_i, c_i) to each p_i: the projection onto
+    the plane where its barycentric coordinates (from the 2 x 2 normal equations) are
+    all >= 0, else the nearest of the closest points on the three edges; a triangle whose
+    height is below 1e-8 of its longest edge counts as its edges."""
+    ab, ac, ap = b - a, c - a, p - a
+    gram = np.stack(
+        [np.stack([_dot(ab, ab), _dot(ab, ac)], -1), np.stack([_dot(ab, ac), _dot(ac, ac)], -1)],
+        -2,
+    )
+    longest2 = np.max([_dot(ab, ab), _dot(c - b, c - b), _dot(ac, ac)], axis=0)
+    flat = np.linalg.norm(np.cross(ab, ac), axis=1) <= 1e-8 * longest2
+    gram[flat] = np.eye(2)
+    v, w = np.linalg.solve(gram, np.stack([_dot(ap, ab), _dot(ap, ac)], -1)[..., None])[..., 0].T
+    result = a + v[:, None] * ab + w[:, None] * ac
+    outside = flat | (v < 0) | (w < 0) | (v + w > 1)
+    feet = np.stack([_closest_on_segments(p, u, x) for u, x in ((a, b), (b, c), (c, a))])
+    nearest = np.argmin(np.linalg.norm(feet - p, axis=2), axis=0)
+    result[outside] = feet[nearest, np.arange(p.shape[0])][outside]
+    return result
+
+
+def _closest_on_segments(p, a, b):
+    """Closest point (N, 3) on segment (a_i, b_i) to each p_i."""
+    ab = b - a
+    length2 = _dot(ab, ab)
+    t = np.divide(_dot(p - a, ab), length2, out=np.zeros_like(length2), where=length2 > 0)
+    return a + np.clip(t, 0.0, 1.0)[:, None] * ab
+
+
+def _dot(u, v):
+    return np.einsum("ij,ij->i", u, v)
+
+
 def closest_points_on_mesh(points, vertices, faces, degenerate):
     """Closest point, face and distance by testing every face; flagged faces as three edges."""
-    from zeroset.evaluate import closest_points_on_triangles
-
     n = points.shape[0]
     best = np.full(n, np.inf)
     closest, face = np.zeros((n, 3)), np.full(n, -1)

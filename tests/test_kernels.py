@@ -164,6 +164,10 @@ def test_barycentrics_reproduce_the_closest_point():
     np.testing.assert_allclose(bary.sum(axis=1), 1.0, rtol=0, atol=1e-15)
     foot = bary[:, :1] * a + bary[:, 1:2] * b + bary[:, 2:] * c
     np.testing.assert_allclose(distance2, np.sum((points - foot) ** 2, axis=1), atol=1e-12)
+    # Against the plain NumPy reference (normal equations, not dual vectors).
+    expected = reference.closest_points_on_triangles(points, a, b, c)
+    np.testing.assert_allclose(foot, expected, atol=1e-9)
+    np.testing.assert_allclose(distance2, np.sum((points - expected) ** 2, axis=1), atol=1e-9)
     # Against an independent search: the triangle densely sampled, and its three edges.
     u, v = np.meshgrid(np.linspace(0, 1, 101), np.linspace(0, 1, 101))
     u, v = u[u + v <= 1], v[u + v <= 1]

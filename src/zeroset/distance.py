@@ -32,7 +32,8 @@ def signed_distance(
     bridges=None,
     bridge_reach: float | None = None,
     surface=None,
-    trees=(None, None),
+    tree=None,
+    centroid_tree=None,
 ) -> DistanceField:
     """Evaluate the signed distance f on the grid vertices near the data.
 
@@ -68,7 +69,7 @@ def signed_distance(
         ``surface(positions (M, 3)) -> (M,)`` signed distance: where it is given, the
         planes only decide where f is defined and `surface` gives its values (the blended
         jets of `zeroset.jets`).
-    trees : (cKDTree or None, cKDTree or None)
+    tree, centroid_tree : cKDTree, optional
         Trees over `points` and over `centroids`, to reuse those already built.
 
     Returns
@@ -107,10 +108,8 @@ def signed_distance(
     )
     ijk = _lattice.decode(vertex_keys)
     positions = origin + cube_size * ijk
-    data_tree, centroid_tree = (
-        build_tree(built) if tree is None else tree
-        for built, tree in zip((points, centroids), trees, strict=True)
-    )
+    data_tree = build_tree(points) if tree is None else tree
+    centroid_tree = build_tree(centroids) if centroid_tree is None else centroid_tree
     _, nearest = centroid_tree.query(positions, k=CANDIDATES, workers=-1)
     bridge_tree = build_tree(bridges) if bridges.shape[0] else None
     values = np.full(positions.shape[0], np.nan)

@@ -556,7 +556,7 @@ def drop_sparse_points(cells: Cells, neighbours, density: Density, parameters: P
     viewpoints = cells.viewpoints
     if viewpoints is not None and viewpoints.ndim == 2:
         viewpoints = viewpoints[keep]
-    cells = Cells(cells.points[keep], np.where(cells.cell >= 0, row[cells.cell], -1), viewpoints)
+    cells = Cells(cells.points[keep], row[cells.cell], viewpoints)
     density = Density(
         density.radii[keep], density.sectors[keep], density.extent[keep], density.noise_model
     )
@@ -638,7 +638,8 @@ def distance_field(cloud: LocalCloud, fitted: FittedPlanes, normals, parameters,
         bridges=bridges,
         bridge_reach=BRIDGE_REACH * parameters.rho_delta,
         surface=None if jets is None else (lambda x: evaluate_jets(jets, x)[0]),
-        trees=(cloud.tree, fitted.centroid_tree),
+        tree=cloud.tree,
+        centroid_tree=fitted.centroid_tree,
     )
     counts = {
         "gap_bridge_points": bridges.shape[0],
