@@ -38,11 +38,12 @@ from bench_phase1 import (
     reproduce_lines,
 )
 
-# name: (points, phase-1 cube_size, target seconds). The cube sizes were measured on this pipe:
-# 0.0201 gives a 10,046-face phase-1 mesh from 100k points, 0.0070 one of 98,163 faces from 1M.
+# name: (points, phase-1 cube_size, target seconds). The cube sizes were measured on this pipe,
+# phase 1 without refinement: 0.0201 gives a 10,006-face phase-1 mesh from 100k points, 0.0064
+# one of 100,259 faces from 1M.
 CASES = {
-    "small": (100_000, 0.0201, 30.0),
-    "large": (1_000_000, 0.0070, 300.0),
+    "small": (100_000, 0.0201, 12.0),
+    "large": (1_000_000, 0.0064, 150.0),
 }
 SURFACE_SAMPLES = 200_000
 PROFILE_LINES = 8
@@ -68,7 +69,12 @@ def _profile(start, points) -> list[str]:
     profiler = cProfile.Profile()
     profiler.runcall(zeroset.optimize, start, points, rng=0)
     profiler.create_stats()
-    rows = sorted(profiler.stats.items(), key=lambda item: item[1][3], reverse=True)
+    # zeroset's own functions only: the threads' waits would crowd them out.
+    rows = sorted(
+        (item for item in profiler.stats.items() if "zeroset" in item[0][0]),
+        key=lambda item: item[1][3],
+        reverse=True,
+    )
     return [
         f"{cumulative:9.2f} s cum {own:9.2f} s own {calls:>9} calls  "
         f"{Path(*Path(file).parts[-2:])}:{line}({name})"
@@ -86,7 +92,7 @@ def run_child(case: str, repeat: int, scale: float, profile: bool) -> dict:
     zeroset.optimize(zeroset.reconstruct(warm).mesh, warm, rng=0)  # compile every kernel first
     rss_warm = _peak_rss_mib()
     sample = sample_cylinder(round(points * scale), **CYLINDER)
-    start = zeroset.reconstruct(sample.points, cube_size=cube_size).mesh
+    start = zeroset.reconstruct(sample.points, cube_size=cube_size, refine_levels=0).mesh
     runs = []
     for _ in range(repeat):
         gc.collect()
@@ -168,8 +174,8 @@ def render(reports: list[dict], machine: dict, command: str, scale: float) -> st
         "phase-1 mesh of a noisy open pipe, "
         f"`zeroset.synthetic.sample_cylinder(n, radius={CYLINDER['radius']}, "
         f"length={CYLINDER['length']}, noise={CYLINDER['noise']}, rng={CYLINDER['rng']})`. "
-        "Phase 1 is `zeroset.reconstruct(points, cube_size=...)` on the same points, with the "
-        "cube size chosen for the wanted face count.",
+        "Phase 1 is `zeroset.reconstruct(points, cube_size=..., refine_levels=0)` on the same "
+        "points, with the cube size chosen for the wanted face count.",
         "",
         "- Every case runs in a fresh child process, which first optimises the phase-1 mesh of a "
         f"{WARMUP_POINTS:,}-point pipe so that Numba JIT compilation is excluded.",

@@ -12,7 +12,7 @@ from zeroset._kernels import linalg
 from zeroset._kernels import normals as normals_kernels
 from zeroset._kernels import orientation as orientation_kernels
 from zeroset._kernels import triangles as triangle_kernels
-from zeroset.neighbours import knn
+from zeroset.neighbours import knn, spatial_order
 
 
 def _neighbourhood_inputs(rng):
@@ -132,8 +132,9 @@ def test_jet_fit_matches_reference(seed):
     np.testing.assert_allclose(got[2][:, :6] * flips, expected[2][:, :6], rtol=1e-7, atol=1e-9)
     # Turning the normal over negates the principal curvatures, so they swap places.
     curvatures = np.sort(got[2][:, 6:8] * sn[:, None], axis=1)
-    np.testing.assert_allclose(curvatures, np.sort(expected[2][:, 6:8], axis=1), rtol=1e-7,
-                               atol=1e-9)
+    np.testing.assert_allclose(
+        curvatures, np.sort(expected[2][:, 6:8], axis=1), rtol=1e-7, atol=1e-9
+    )
 
 
 def test_component_extremes_finds_the_farthest_point_per_direction():
@@ -179,6 +180,21 @@ def test_barycentrics_reproduce_the_closest_point():
         )
         brute = np.sum((samples - points[i]) ** 2, axis=1).min()
         assert distance2[i] <= brute + 1e-12
+
+
+@pytest.mark.parametrize("in_order", [False, True])
+def test_a_guessed_face_changes_no_closest_point(in_order):
+    # A guess only bounds the search: any face, right or wrong, gives the same answer
+    # (the soup's triangles are never equally close to a point).
+    rng = np.random.default_rng(8)
+    points, vertices, faces, _ = _triangle_soup_inputs(rng)
+    if in_order:
+        points = np.ascontiguousarray(points[spatial_order(points)])
+    plain = evaluate_kernels.closest_points_on_mesh(points, vertices, faces)
+    for guess in (plain[0], rng.integers(0, faces.shape[0], size=points.shape[0])):
+        guessed = evaluate_kernels.closest_points_on_mesh(points, vertices, faces, guess, in_order)
+        for got, expected in zip(guessed, plain, strict=True):
+            np.testing.assert_array_equal(got, expected)
 
 
 @pytest.mark.parametrize(
@@ -246,8 +262,13 @@ def test_jet_freedom_predicts_the_residual_of_pure_noise():
     rows = rng.choice(n, 2_000, replace=False)
     for radius in (0.06, 0.1, 0.16):
         fit = jet_kernels.fit_rows(
-            points, weights, np.zeros((n, 3, 3)), nb.indices[rows], nb.distances[rows],
-            np.full(rows.size, radius), 8,
+            points,
+            weights,
+            np.zeros((n, 3, 3)),
+            nb.indices[rows],
+            nb.distances[rows],
+            np.full(rows.size, radius),
+            8,
         )
         misfit, freedom = fit[5], fit[6]
         assert np.all((freedom > 0.0) & (freedom < 1.0))

@@ -1,10 +1,12 @@
 """Phase 2, mesh optimisation (Hoppe 1993): energy, moves, and the whole optimisation."""
 
+import numba
 import numpy as np
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
+from tests import reference
 from zeroset import InputError, optimize, reconstruct, topology
 from zeroset.evaluate import sample_surface
 from zeroset.optimization import MeshState, MoveOutcome, fit_vertices, project, spring_energy
@@ -230,6 +232,12 @@ def test_any_move_sequence_keeps_a_valid_mesh_and_exact_energy_bookkeeping(small
         energy = after
     result = state.to_mesh()
     _check_valid(result, loops=0, euler=euler)
+    # Every point's bookkept distance is to the closest point of the face it is said to be on.
+    corners = result.vertices[result.faces[state.point_faces]]
+    foot = reference.closest_points_on_triangles(points, *corners.transpose(1, 0, 2))
+    np.testing.assert_allclose(
+        np.sum((points - foot) ** 2, axis=1), state.distance2, rtol=1e-9, atol=1e-15
+    )
 
 
 # --------------------------------------------------------------------------- optimisation
@@ -314,3 +322,62 @@ def test_bad_input_is_refused(tetra_mesh):
         optimize(tetra_mesh, points, c_rep=-1.0)
     with pytest.raises(TypeError, match="Mesh"):
         optimize((tetra_mesh.vertices, tetra_mesh.faces), points)
+
+
+# --------------------------------------------------------------------------- slabs
+
+
+@pytest.fixture(scope="module")
+def pipe_state():
+    """An open pipe's points and its phase-1 mesh (Hoppe's planes), a few thousand faces."""
+    sample = sample_cylinder(6000, radius=0.25, length=1.0, noise=0.002, rng=11)
+    start = reconstruct(sample.points, surface="planes").mesh
+    return sample.points, start
+
+
+def test_moves_of_one_slab_touch_nothing_of_the_other(pipe_state):
+    # The safety of the threads: a pass over label 0 alone leaves every vertex of label 1
+    # where it was, every face with a corner of label 1 as it was, and the points on
+    # those faces where they were.
+    points, start = pipe_state
+    projection = project(points, start.vertices, start.faces)
+    state = MeshState(start.vertices, start.faces, points, projection, kappa=1e-3, c_rep=1e-4)
+    kernel = state._state
+    owner = state._slabs((0.5,))
+    assert owner is not None and set(owner[kernel.alive_v]) == {0, 1}
+    V, F, pf = kernel.V.copy(), kernel.F.copy(), kernel.pf.copy()
+    alive_f = kernel.alive_f.copy()
+    kept = alive_f & (owner[F] == 1).any(axis=1)
+    edges = topology.edge_face_counts(start.faces)[0]
+    delta, tally, deferred = state._pass(
+        kernel, 0, edges[(owner[edges] == 0).all(axis=1)], 3, state._scratches(1)[0], owner,
+        10**6,
+    )  # fmt: skip
+    assert tally[:, MoveOutcome.ACCEPTED].sum() > 50 and deferred.shape[0] > 0
+    ones = np.flatnonzero(owner[: V.shape[0]] == 1)
+    np.testing.assert_array_equal(kernel.V[ones], V[ones])
+    np.testing.assert_array_equal(kernel.F[kept], F[kept])
+    assert kernel.alive_f[kept].all()
+    on_kept = kept[pf]
+    np.testing.assert_array_equal(kernel.pf[on_kept], pf[on_kept])
+    mesh = state.to_mesh()
+    assert topology.is_edge_manifold(mesh.faces)
+    assert topology.is_consistently_oriented(mesh.faces)
+
+
+def test_one_thread_and_two_give_the_same_mesh(pipe_state):
+    points, start = pipe_state
+    threads = numba.get_num_threads()
+    try:
+        numba.set_num_threads(1)
+        alone = optimize(start, points, rng=4).mesh
+    finally:
+        numba.set_num_threads(threads)
+    numba.set_num_threads(min(2, numba.config.NUMBA_NUM_THREADS))
+    try:
+        together = optimize(start, points, rng=4).mesh
+    finally:
+        numba.set_num_threads(threads)
+    np.testing.assert_array_equal(alone.faces, together.faces)
+    np.testing.assert_array_equal(alone.vertices, together.vertices)
+

@@ -95,13 +95,17 @@ def _closest_face_rows(
     # For each point, the minimum over triangles T of |p - q(p, T)|^2, found by branch and
     # bound over the boxes: a subtree is skipped when its box is no nearer than the best
     # triangle so far. `triangles` (S, 15) are the rows of closest_point_on_triangle in
-    # leaf order, `degenerate` (S,) their flags; `slot` gets the row, `bary` the
-    # barycentric coordinates of the closest point in it.
+    # leaf order, `degenerate` (S,) their flags; `slot` holds a row to start from (-1:
+    # none) and gets the row of the closest point, `bary` its barycentric coordinates.
     n_leaves = leaf_start.shape[0]
     for i in prange(points.shape[0]):
         px, py, pz = points[i, 0], points[i, 1], points[i, 2]
-        best, best_slot = np.inf, -1
+        best, best_slot = np.inf, slot[i]
         bu, bv, bw = 1.0, 0.0, 0.0
+        if best_slot >= 0:
+            best, bu, bv, bw = closest_point_on_triangle(
+                px, py, pz, triangles[best_slot], degenerate[best_slot]
+            )
         stack = np.zeros(128, dtype=np.int64)  # depth <= log2(n_leaves) + 1 < 64
         stack_distance = np.zeros(128)
         stack[0] = 1
@@ -175,24 +179,32 @@ def build_hierarchy(vertices, faces):
     return triangles, degenerate, order, boxes, leaf_start, leaf_count
 
 
-def closest_points_on_mesh(points, vertices, faces):
+def closest_points_on_mesh(points, vertices, faces, guess=None, in_order=False):
     """Return the face (N,) int64 holding the closest point to each point, the point's
     barycentric coordinates (N, 3) in it (corner order) and the squared distance (N,).
 
     `points` (N, 3) and `vertices` (M, 3) are float64, `faces` (F, 3) int64 with F >= 1;
     a degenerate face counts as its three edges. Queries run in Morton order, so
-    neighbouring iterations walk the same part of the tree.
+    neighbouring iterations walk the same part of the tree; `in_order` says that the
+    points are in that order already (:func:`~zeroset.neighbours.spatial_order`).
+    `guess` (N,) int64, a face per point likely to hold its closest point (a previous
+    projection's), starts each search with a bound, so that it visits less of the tree;
+    the result is the same but where two faces are equally close.
     """
     triangles, degenerate, face_of_slot, boxes, leaf_start, leaf_count = build_hierarchy(
         vertices, faces
     )
-    query = spatial_order(points)
     n = points.shape[0]
-    slot = np.zeros(n, dtype=np.int64)
+    query = np.arange(n) if in_order else spatial_order(points)
+    slot = np.full(n, -1, dtype=np.int64)
+    if guess is not None:
+        slot_of_face = np.zeros(faces.shape[0], dtype=np.int64)
+        slot_of_face[face_of_slot] = np.arange(faces.shape[0])
+        slot = slot_of_face[guess[query]]
     bary = np.zeros((n, 3))
     distance2 = np.zeros(n)
     _closest_face_rows(
-        np.ascontiguousarray(points[query]),
+        points if in_order else np.ascontiguousarray(points[query]),
         triangles,
         degenerate,
         boxes,

@@ -13,7 +13,12 @@ The mesh lives in flat arrays with spare capacity, bundled in one named tuple ``
     head (Fc,) int64     first point of each face's list (-1: none)
     nxt, prv (N,) int64  doubly linked point lists per face
     count (Fc,) int64    points per face
-    sizes (3,) int64     used vertex slots, used face slots, live vertices
+    sizes (5,) int64     next free vertex slot, next free face slot, live vertices, and
+                         the ends of the vertex and face slots this state may fill
+
+A pass works in a :class:`Scratch` of buffers allocated once, sized for the largest move
+(the point buffers for every point, though only the points of one move's faces are ever
+written), so that a move allocates nothing.
 
 A move is evaluated locally (Hoppe 1993, §4.3): only the points on the faces it changes are
 projected again, onto the new faces only, and only the new vertex is optimised (a few
@@ -42,6 +47,11 @@ H = -1  # corner index standing for the new vertex in candidate faces
 _LOCAL_ITERATIONS = 2  # alternations of projection and vertex solve per candidate start
 
 State = namedtuple("State", "V F alive_v alive_f vf deg X pf pb pd head nxt prv count sizes")
+Scratch = namedtuple(
+    "Scratch",
+    "pts face bary d2 trial_face trial_bary trial_d2 ring_i ring_j ring seen region new_faces "
+    "global_face near fold_faces triangles degenerate sphere edge probe position trial_position",
+)
 
 
 # ------------------------------------------------------------------ building and reading
@@ -78,11 +88,42 @@ def build_state(vertices, faces, points, face_of_point, bary, distance2, width, 
     pf = face_of_point.copy()
     for p in range(n_p):
         _link(head, nxt, prv, count, pf[p], p)
-    sizes = np.array([n_v, n_f, np.count_nonzero(alive_v)], dtype=np.int64)
+    sizes = np.array([n_v, n_f, np.count_nonzero(alive_v), vc, fc], dtype=np.int64)
     return State(
         V, F, alive_v, alive_f, vf, deg, points, pf, bary.copy(), distance2.copy(),
         head, nxt, prv, count, sizes,
     )  # fmt: skip
+
+
+@jit
+def make_scratch(n_points, width):
+    """Return the Scratch for moves on a mesh of vertex `width` with `n_points` points."""
+    faces = 2 * width  # a collapse's region: the faces around both ends of its edge
+    return Scratch(
+        np.empty(n_points, dtype=np.int64),
+        np.empty(n_points, dtype=np.int64),
+        np.empty((n_points, 3)),
+        np.empty(n_points),
+        np.empty(n_points, dtype=np.int64),
+        np.empty((n_points, 3)),
+        np.empty(n_points),
+        np.zeros(faces, dtype=np.int64),
+        np.zeros(faces, dtype=np.int64),
+        np.zeros(2 * faces, dtype=np.int64),
+        np.zeros(faces, dtype=np.int64),
+        np.zeros(faces, dtype=np.int64),
+        np.zeros((faces, 3), dtype=np.int64),
+        np.zeros(faces, dtype=np.int64),
+        np.zeros((faces, faces), dtype=np.bool_),
+        np.zeros((faces, 3), dtype=np.int64),
+        np.zeros((faces, 15)),
+        np.zeros(faces, dtype=np.bool_),
+        np.zeros((faces, 4)),
+        np.zeros(4, dtype=np.int64),
+        np.zeros(4, dtype=np.int64),
+        np.zeros(3),
+        np.zeros(3),
+    )
 
 
 @jit
@@ -166,12 +207,11 @@ def _manifold_edge(state, i, j, out):
 
 
 @jit
-def _neighbours(state, v, out):
+def _neighbours(state, v, out, seen):
     # Distinct vertices sharing an edge with v, into out; returns how many and whether v
-    # lies on the boundary (some edge of v belongs to one face only).
+    # lies on the boundary (some edge of v belongs to one face only). `seen` is scratch.
     F, vf, deg = state.F, state.vf, state.deg
     n = 0
-    seen = np.zeros(out.shape[0], dtype=np.int64)
     for k in range(deg[v]):
         f = vf[v, k]
         for c in range(3):
@@ -284,23 +324,24 @@ def _worst_fold(state, region, n_region, new_faces, n_new, h, min_cos):
 
 
 @jit
-def _region_fold(state, region, n_region, min_cos):
-    # The same as _worst_fold over the region faces themselves, before the move.
+def _region_fold(state, region, n_region, min_cos, faces, h):
+    # The same as _worst_fold over the region faces themselves, before the move; `faces`
+    # (at least n_region rows) and `h` are scratch.
     F = state.F
-    faces = np.zeros((n_region, 3), dtype=np.int64)
     for r in range(n_region):
         faces[r] = F[region[r]]
-    return _worst_fold(state, region, n_region, faces, n_region, np.zeros(3), min_cos)
+    return _worst_fold(state, region, n_region, faces, n_region, h, min_cos)
 
 
 @jit
-def _gather_points(state, region, n_region):
-    # The points assigned to the region faces, and the sum of their squared distances.
+def _gather_points(state, region, n_region, out):
+    # The points assigned to the region faces, into out (scratch); returns the view of
+    # out that holds them and the sum of their squared distances.
     pd, head, nxt, count = state.pd, state.head, state.nxt, state.count
     total = 0
     for r in range(n_region):
         total += count[region[r]]
-    out = np.zeros(total, dtype=np.int64)
+    out = out[:total]
     n = 0
     energy = 0.0
     for r in range(n_region):
@@ -314,16 +355,16 @@ def _gather_points(state, region, n_region):
 
 
 @jit
-def _project_local(state, pts, new_faces, n_new, near, h, best_face, best_bary, best_d2):
+def _project_local(
+    state, scratch, pts, new_faces, n_new, near, h, best_face, best_bary, best_d2
+):  # fmt: skip
     # Project every point in pts onto the nearest candidate face; returns the energy.
     # best_face holds a first guess per point (-1: none). A point with a guess g is
     # projected onto the faces t with near[g, t] only, g first, so that every other face
     # whose bounding sphere is no nearer is skipped. Fewer faces can only over-estimate
     # a distance.
     V, X = state.V, state.X
-    triangles = np.zeros((n_new, 15))
-    degenerate = np.zeros(n_new, dtype=np.bool_)
-    sphere = np.zeros((n_new, 4))
+    triangles, degenerate, sphere = scratch.triangles, scratch.degenerate, scratch.sphere
     for t in range(n_new):
         row = triangles[t]
         va, vb, vc = new_faces[t, 0], new_faces[t, 1], new_faces[t, 2]
@@ -374,29 +415,27 @@ def _project_local(state, pts, new_faces, n_new, near, h, best_face, best_bary, 
 
 
 @jit
-def _adjacent(new_faces, n_new):
-    # near[t, s]: candidate faces t and s are one face or share an edge.
-    near = np.zeros((n_new, n_new), dtype=np.bool_)
+def _adjacent(new_faces, n_new, near):
+    # near[t, s] (into scratch): candidate faces t and s are one face or share an edge.
     for t in range(n_new):
         for s in range(n_new):
             shared = 0
             for c in range(3):
                 shared += _has(new_faces[s], 3, new_faces[t, c])
             near[t, s] = shared >= 2
-    return near
 
 
 @jit
-def _guesses(state, pts, global_face, n_new):
-    # For each point, the candidate face that replaces the face it lies on now (-1: none).
+def _guesses(state, pts, global_face, n_new, face):
+    # For each point, the candidate face that replaces the face it lies on now (-1: none),
+    # into face.
     pf = state.pf
-    face = np.full(pts.shape[0], -1, dtype=np.int64)
     for q in range(pts.shape[0]):
+        face[q] = -1
         for t in range(n_new):
             if global_face[t] == pf[pts[q]]:
                 face[q] = t
                 break
-    return face
 
 
 @jit
@@ -411,17 +450,21 @@ def _spring(V, h, ring, n_ring):
 
 @jit
 def _fit_vertex(
-    state, pts, new_faces, n_new, near, ring, n_ring, kappa, start, target, face, bary, d2
+    state, scratch, pts, new_faces, n_new, near, ring, n_ring, kappa, target, face, bary, d2
 ):
-    # Optimise the new vertex from `start`: alternate projecting the points onto the
-    # candidate faces and the least-squares position of the one free vertex (Hoppe 1993,
-    # §4.3): min_h sum_p |x_p - sum_c b_pc v_c|^2 + kappa sum_ring |h - v_u|^2.
+    # Optimise the new vertex from scratch.position: alternate projecting the points onto
+    # the candidate faces and the least-squares position of the one free vertex (Hoppe
+    # 1993, §4.3): min_h sum_p |x_p - sum_c b_pc v_c|^2 + kappa sum_ring |h - v_u|^2.
     # Stops early once the energy is so far above `target` (what the move must beat) that
-    # more alternations, each gaining less than the last, cannot reach it.
-    # Returns the local energy (distances plus springs) and the position, in h.
+    # more alternations, each gaining less than the last, cannot reach it. `face` holds a
+    # guess per point on entry, and face, bary, d2 the projection on return.
+    # Returns the local energy (distances plus springs); the position is in scratch.position.
     V, X = state.V, state.X
-    h = start.copy()
-    energy = _project_local(state, pts, new_faces, n_new, near, h, face, bary, d2)
+    h, trial = scratch.position, scratch.trial_position
+    n = pts.shape[0]
+    trial_face, trial_bary = scratch.trial_face[:n], scratch.trial_bary[:n]
+    trial_d2 = scratch.trial_d2[:n]
+    energy = _project_local(state, scratch, pts, new_faces, n_new, near, h, face, bary, d2)
     energy += kappa * _spring(V, h, ring, n_ring)
     for _ in range(_LOCAL_ITERATIONS):
         weight = kappa * n_ring
@@ -430,7 +473,7 @@ def _fit_vertex(
             rx += kappa * V[ring[m], 0]
             ry += kappa * V[ring[m], 1]
             rz += kappa * V[ring[m], 2]
-        for q in range(pts.shape[0]):
+        for q in range(n):
             t = face[q]
             bh = 0.0
             ox, oy, oz = X[pts[q], 0], X[pts[q], 1], X[pts[q], 2]
@@ -448,48 +491,23 @@ def _fit_vertex(
             rz += bh * oz
         if weight <= 1e-300:
             break
-        trial = np.array([rx / weight, ry / weight, rz / weight])
-        trial_face = face.copy()
-        trial_bary = bary.copy()
-        trial_d2 = d2.copy()
+        trial[0], trial[1], trial[2] = rx / weight, ry / weight, rz / weight
+        trial_face[:] = face  # the guesses; every bary and d2 is written anew
         trial_energy = _project_local(
-            state, pts, new_faces, n_new, near, trial, trial_face, trial_bary, trial_d2
+            state, scratch, pts, new_faces, n_new, near, trial, trial_face, trial_bary, trial_d2
         )
         trial_energy += kappa * _spring(V, trial, ring, n_ring)
         if trial_energy >= energy:
             break
         gain = energy - trial_energy
-        h, energy = trial, trial_energy
+        h[:] = trial
+        energy = trial_energy
         face[:] = trial_face
         bary[:] = trial_bary
         d2[:] = trial_d2
         if energy - target > 2.0 * gain:
             break
-    return energy, h
-
-
-@jit
-def _best_fit(
-    state, pts, new_faces, n_new, near, ring, n_ring, kappa, starts, target, face, bary, d2
-):
-    # _fit_vertex from each row of `starts`; keeps the lowest energy.
-    best_energy, best_h = np.inf, starts[0].copy()
-    guesses = face.copy()
-    f_try = np.zeros_like(face)
-    b_try = np.zeros_like(bary)
-    d_try = np.zeros_like(d2)
-    for s in range(starts.shape[0]):
-        f_try[:] = guesses
-        energy, h = _fit_vertex(
-            state, pts, new_faces, n_new, near, ring, n_ring, kappa, starts[s], target,
-            f_try, b_try, d_try,
-        )  # fmt: skip
-        if energy < best_energy:
-            best_energy, best_h = energy, h
-            face[:] = f_try
-            bary[:] = b_try
-            d2[:] = d_try
-    return best_energy, best_h
+    return energy
 
 
 @jit
@@ -507,7 +525,7 @@ def _reassign(state, pts, global_face, face, bary, d2):
 
 
 @jit
-def _fold_ok(state, region, n_region, new_faces, n_new, h, min_cos):
+def _fold_ok(state, scratch, region, n_region, new_faces, n_new, h, min_cos):
     # No candidate face is degenerate, and no fold between neighbouring faces is sharper
     # than `min_cos`; where the region was folded before, the move may not add folds nor
     # sharpen the sharpest one.
@@ -516,7 +534,9 @@ def _fold_ok(state, region, n_region, new_faces, n_new, h, min_cos):
         return False
     if bad_after == 0:
         return True
-    before, bad_before = _region_fold(state, region, n_region, min_cos)
+    before, bad_before = _region_fold(
+        state, region, n_region, min_cos, scratch.fold_faces, scratch.trial_position
+    )
     return bad_after <= bad_before and after >= before - 1e-12
 
 
@@ -524,7 +544,7 @@ def _fold_ok(state, region, n_region, new_faces, n_new, h, min_cos):
 
 
 @jit
-def try_collapse(state, i, j, kappa, c_rep, min_cos, force, result):
+def try_collapse(state, scratch, i, j, kappa, c_rep, min_cos, force, result):
     """Collapse edge (i, j) into one vertex if that is legal and lowers the energy.
 
     `result` (2,) float64 gets the energy change and the number of the surviving vertex.
@@ -533,14 +553,13 @@ def try_collapse(state, i, j, kappa, c_rep, min_cos, force, result):
     V, F, vf, deg = state.V, state.F, state.vf, state.deg
     alive_v, alive_f = state.alive_v, state.alive_f
     width = vf.shape[1]
-    edge = np.zeros(4, dtype=np.int64)
+    edge = scratch.edge
     n_edge = _manifold_edge(state, i, j, edge)
     if n_edge == 0:
         return ILLEGAL_TOPOLOGY
-    ring_i = np.zeros(2 * width, dtype=np.int64)
-    ring_j = np.zeros(2 * width, dtype=np.int64)
-    n_i, boundary_i = _neighbours(state, i, ring_i)
-    n_j, boundary_j = _neighbours(state, j, ring_j)
+    ring_i, ring_j = scratch.ring_i, scratch.ring_j
+    n_i, boundary_i = _neighbours(state, i, ring_i, scratch.seen)
+    n_j, boundary_j = _neighbours(state, j, ring_j, scratch.seen)
     # Hoppe 1993 §4.1: an edge joining two boundary vertices must be a boundary edge.
     if boundary_i and boundary_j and n_edge == 2:
         return ILLEGAL_TOPOLOGY
@@ -555,7 +574,7 @@ def try_collapse(state, i, j, kappa, c_rep, min_cos, force, result):
     # whose other two edges are boundary edges too (an ear) may not collapse.
     if n_edge == 1:
         k = _opposite(F, edge[0], i, j)
-        probe = np.zeros(4, dtype=np.int64)
+        probe = scratch.probe
         if _edge_faces(state, i, k, probe) == 1 and _edge_faces(state, j, k, probe) == 1:
             return ILLEGAL_TOPOLOGY
     # The mesh keeps more than a tetrahedron (or a triangle, at a boundary).
@@ -565,7 +584,7 @@ def try_collapse(state, i, j, kappa, c_rep, min_cos, force, result):
         return ILLEGAL_TOPOLOGY
     # Region: faces around i or j. Candidates: the same faces with i, j -> H, minus the
     # faces on the edge.
-    region = np.zeros(deg[i] + deg[j], dtype=np.int64)
+    region = scratch.region
     n_region = 0
     for k in range(deg[i]):
         region[n_region] = vf[i, k]
@@ -574,8 +593,7 @@ def try_collapse(state, i, j, kappa, c_rep, min_cos, force, result):
         if not _contains(F, vf[j, k], i):
             region[n_region] = vf[j, k]
             n_region += 1
-    new_faces = np.zeros((n_region, 3), dtype=np.int64)
-    global_face = np.zeros(n_region, dtype=np.int64)
+    new_faces, global_face = scratch.new_faces, scratch.global_face
     n_new = 0
     for r in range(n_region):
         f = region[r]
@@ -586,7 +604,7 @@ def try_collapse(state, i, j, kappa, c_rep, min_cos, force, result):
             new_faces[n_new, c] = H if (v == i or v == j) else v
         global_face[n_new] = f
         n_new += 1
-    ring = np.zeros(n_i + n_j, dtype=np.int64)
+    ring = scratch.ring
     n_ring = 0
     for m in range(n_i):
         if ring_i[m] != j:
@@ -596,7 +614,7 @@ def try_collapse(state, i, j, kappa, c_rep, min_cos, force, result):
         if ring_j[m] != i and not _has(ring, n_ring, ring_j[m]):
             ring[n_ring] = ring_j[m]
             n_ring += 1
-    pts, old = _gather_points(state, region, n_region)
+    pts, old = _gather_points(state, region, n_region, scratch.pts)
     for m in range(n_i):
         u = ring_i[m]
         old += kappa * (
@@ -611,19 +629,19 @@ def try_collapse(state, i, j, kappa, c_rep, min_cos, force, result):
     # One start: the midpoint, or the boundary end point when only one end is on the
     # boundary, so that the boundary keeps its place (Hoppe 1993 tries all three; the local
     # solve moves the vertex from there).
-    starts = np.zeros((1, 3))
+    h = scratch.position
     if boundary_i and not boundary_j:
-        starts[0] = V[i]
+        h[:] = V[i]
     elif boundary_j and not boundary_i:
-        starts[0] = V[j]
+        h[:] = V[j]
     else:
-        starts[0] = 0.5 * (V[i] + V[j])
-    face = _guesses(state, pts, global_face, n_new)
-    bary = np.zeros((pts.shape[0], 3))
-    d2 = np.zeros(pts.shape[0])
-    near = _adjacent(new_faces, n_new)
-    new, h = _best_fit(
-        state, pts, new_faces, n_new, near, ring, n_ring, kappa, starts, old + c_rep,
+        h[:] = 0.5 * (V[i] + V[j])
+    n = pts.shape[0]
+    face, bary, d2 = scratch.face[:n], scratch.bary[:n], scratch.d2[:n]
+    _guesses(state, pts, global_face, n_new, face)
+    _adjacent(new_faces, n_new, scratch.near)
+    new = _fit_vertex(
+        state, scratch, pts, new_faces, n_new, scratch.near, ring, n_ring, kappa, old + c_rep,
         face, bary, d2,
     )  # fmt: skip
     delta = new - old - c_rep
@@ -631,7 +649,7 @@ def try_collapse(state, i, j, kappa, c_rep, min_cos, force, result):
     result[1] = i
     if not force and delta >= 0.0:
         return ENERGY_INCREASE
-    if not _fold_ok(state, region, n_region, new_faces, n_new, h, min_cos):
+    if not _fold_ok(state, scratch, region, n_region, new_faces, n_new, h, min_cos):
         return BAD_DIHEDRAL
     # Apply: i survives at h, j and the faces on the edge go.
     V[i] = h
@@ -654,7 +672,7 @@ def try_collapse(state, i, j, kappa, c_rep, min_cos, force, result):
 
 
 @jit
-def try_split(state, i, j, kappa, c_rep, min_cos, force, result):
+def try_split(state, scratch, i, j, kappa, c_rep, min_cos, force, result):
     """Split edge (i, j) at a new vertex if that lowers the energy (always legal).
 
     `result` gets the energy change and the new vertex. Returns an outcome code.
@@ -663,15 +681,14 @@ def try_split(state, i, j, kappa, c_rep, min_cos, force, result):
     alive_v, alive_f = state.alive_v, state.alive_f
     sizes = state.sizes
     width = vf.shape[1]
-    edge = np.zeros(4, dtype=np.int64)
+    edge = scratch.edge
     n_edge = _manifold_edge(state, i, j, edge)
     if n_edge == 0:
         return ILLEGAL_TOPOLOGY
-    if sizes[0] >= V.shape[0] or sizes[1] + n_edge > F.shape[0]:
+    if sizes[0] >= sizes[3] or sizes[1] + n_edge > sizes[4]:
         return ILLEGAL_TOPOLOGY  # no room left; not a property of the mesh
-    new_faces = np.zeros((2 * n_edge, 3), dtype=np.int64)
-    global_face = np.zeros(2 * n_edge, dtype=np.int64)
-    ring = np.zeros(2 + n_edge, dtype=np.int64)
+    n_new = 2 * n_edge
+    new_faces, global_face, ring = scratch.new_faces, scratch.global_face, scratch.ring
     ring[0], ring[1] = i, j
     for e in range(n_edge):
         f = edge[e]
@@ -688,21 +705,22 @@ def try_split(state, i, j, kappa, c_rep, min_cos, force, result):
         new_faces[2 * e + 1, 0], new_faces[2 * e + 1, 1], new_faces[2 * e + 1, 2] = H, y, k
         global_face[2 * e] = f
         global_face[2 * e + 1] = sizes[1] + e
-    pts, old = _gather_points(state, edge, n_edge)
+    pts, old = _gather_points(state, edge, n_edge, scratch.pts)
     old += kappa * ((V[i, 0] - V[j, 0]) ** 2 + (V[i, 1] - V[j, 1]) ** 2 + (V[i, 2] - V[j, 2]) ** 2)
     if not force and old <= c_rep:
         # The new energy is at least 0: the split cannot pay for its vertex.
         result[0] = c_rep - old
         result[1] = sizes[0]
         return ENERGY_INCREASE
-    starts = np.zeros((1, 3))
-    starts[0] = 0.5 * (V[i] + V[j])
-    face = _guesses(state, pts, global_face, 2 * n_edge)
-    bary = np.zeros((pts.shape[0], 3))
-    d2 = np.zeros(pts.shape[0])
-    near = np.ones((2 * n_edge, 2 * n_edge), dtype=np.bool_)
-    new, h = _best_fit(
-        state, pts, new_faces, 2 * n_edge, near, ring, 2 + n_edge, kappa, starts, old - c_rep,
+    h = scratch.position
+    h[:] = 0.5 * (V[i] + V[j])
+    n = pts.shape[0]
+    face, bary, d2 = scratch.face[:n], scratch.bary[:n], scratch.d2[:n]
+    _guesses(state, pts, global_face, n_new, face)
+    near = scratch.near
+    near[:n_new, :n_new] = True
+    new = _fit_vertex(
+        state, scratch, pts, new_faces, n_new, near, ring, 2 + n_edge, kappa, old - c_rep,
         face, bary, d2,
     )  # fmt: skip
     delta = new - old + c_rep
@@ -710,7 +728,7 @@ def try_split(state, i, j, kappa, c_rep, min_cos, force, result):
     result[1] = sizes[0]
     if not force and delta >= 0.0:
         return ENERGY_INCREASE
-    if not _fold_ok(state, edge, n_edge, new_faces, 2 * n_edge, h, min_cos):
+    if not _fold_ok(state, scratch, edge, n_edge, new_faces, n_new, h, min_cos):
         return BAD_DIHEDRAL
     # Apply: vertex s at h; face f becomes (x, s, k), a new face g is (s, y, k).
     s = sizes[0]
@@ -736,7 +754,7 @@ def try_split(state, i, j, kappa, c_rep, min_cos, force, result):
 
 
 @jit
-def try_swap(state, i, j, kappa, c_rep, min_cos, force, result):
+def try_swap(state, scratch, i, j, kappa, c_rep, min_cos, force, result):
     """Swap interior edge (i, j) for the other diagonal (k, m) if legal and lowering energy.
 
     `result` gets the energy change. Returns an outcome code.
@@ -745,7 +763,7 @@ def try_swap(state, i, j, kappa, c_rep, min_cos, force, result):
     width = vf.shape[1]
     if i == j or not alive_v[i] or not alive_v[j]:
         return ILLEGAL_TOPOLOGY
-    edge = np.zeros(4, dtype=np.int64)
+    edge = scratch.edge
     if _edge_faces(state, i, j, edge) != 2:
         return ILLEGAL_TOPOLOGY  # boundary edges are never swapped
     # Name the faces so that f1 runs i -> j and f2 runs j -> i.
@@ -758,35 +776,34 @@ def try_swap(state, i, j, kappa, c_rep, min_cos, force, result):
     k, m = _opposite(F, f1, i, j), _opposite(F, f2, i, j)
     if k == m or deg[k] + 1 > width or deg[m] + 1 > width:
         return ILLEGAL_TOPOLOGY
-    probe = np.zeros(4, dtype=np.int64)
-    if _edge_faces(state, k, m, probe) > 0:
+    if _edge_faces(state, k, m, scratch.probe) > 0:
         return ILLEGAL_TOPOLOGY  # (k, m) is an edge already
-    ring_i = np.zeros(2 * width, dtype=np.int64)
-    n_i, boundary_i = _neighbours(state, i, ring_i)
-    n_j, boundary_j = _neighbours(state, j, ring_i)
+    ring_i = scratch.ring_i
+    n_i, boundary_i = _neighbours(state, i, ring_i, scratch.seen)
+    n_j, boundary_j = _neighbours(state, j, ring_i, scratch.seen)
     # i and j each lose a face: keep an interior vertex with three faces at least.
     if deg[i] - 1 < (1 if boundary_i else 3) or deg[j] - 1 < (1 if boundary_j else 3):
         return ILLEGAL_TOPOLOGY
-    new_faces = np.zeros((2, 3), dtype=np.int64)
+    new_faces, global_face = scratch.new_faces, scratch.global_face
     new_faces[0, 0], new_faces[0, 1], new_faces[0, 2] = i, m, k
     new_faces[1, 0], new_faces[1, 1], new_faces[1, 2] = m, j, k
-    global_face = np.array([f1, f2], dtype=np.int64)
-    pts, old = _gather_points(state, edge, 2)
+    global_face[0], global_face[1] = f1, f2
+    pts, old = _gather_points(state, edge, 2, scratch.pts)
     old += kappa * ((V[i, 0] - V[j, 0]) ** 2 + (V[i, 1] - V[j, 1]) ** 2 + (V[i, 2] - V[j, 2]) ** 2)
-    face = _guesses(state, pts, global_face, 2)
-    bary = np.zeros((pts.shape[0], 3))
-    d2 = np.zeros(pts.shape[0])
-    h = np.zeros(3)
-    new = _project_local(
-        state, pts, new_faces, 2, np.ones((2, 2), dtype=np.bool_), h, face, bary, d2
-    )
+    n = pts.shape[0]
+    face, bary, d2 = scratch.face[:n], scratch.bary[:n], scratch.d2[:n]
+    _guesses(state, pts, global_face, 2, face)
+    near = scratch.near
+    near[:2, :2] = True
+    h = scratch.position  # no corner is the new vertex; unused
+    new = _project_local(state, scratch, pts, new_faces, 2, near, h, face, bary, d2)
     new += kappa * ((V[k, 0] - V[m, 0]) ** 2 + (V[k, 1] - V[m, 1]) ** 2 + (V[k, 2] - V[m, 2]) ** 2)
     delta = new - old
     result[0] = delta
     result[1] = -1
     if not force and delta >= 0.0:
         return ENERGY_INCREASE
-    if not _fold_ok(state, edge, 2, new_faces, 2, h, min_cos):
+    if not _fold_ok(state, scratch, edge, 2, new_faces, 2, h, min_cos):
         return BAD_DIHEDRAL
     F[f1, 0], F[f1, 1], F[f1, 2] = i, m, k
     F[f2, 0], F[f2, 1], F[f2, 2] = m, j, k
@@ -822,13 +839,43 @@ def _push_star(state, v, queue, tail, capacity, head):
 
 
 @jit
-def run_pass(state, edges, kappa, c_rep, min_cos, seed, max_attempts, tally):
+def _owned(state, owner, label, i, j):
+    # Whether every corner of the faces around i and j is labelled `label`. Moves so
+    # labelled run at once without touching each other's data: a move writes only the
+    # faces around its edge, the positions and face lists of their corners and the points
+    # on them, all of one label; what else it reads (the faces around those corners and
+    # their positions) touches a vertex of its label, which no move of another label
+    # writes or moves.
+    F, vf, deg = state.F, state.vf, state.deg
+    if owner[i] != label or owner[j] != label:
+        return False
+    for v in (i, j):
+        for k in range(deg[v]):
+            f = vf[v, k]
+            for c in range(3):
+                if owner[F[f, c]] != label:
+                    return False
+    return True
+
+
+@jit
+def run_pass(
+    state, scratch, owner, label, edges, kappa, c_rep, min_cos, seed, max_attempts, tally,
+    deferred,
+):  # fmt: skip
     """Try the moves on every edge of `edges` (E, 2), in that order, until none is left.
 
     For each candidate edge, collapse, then swap, then split are tried (Hoppe 1993, §4.2);
     after an accepted move the edges around its vertices join the queue at random places.
-    `tally` (3, 4) int64 counts the outcome of each kind of move. Returns the energy
-    change of the accepted moves.
+    `tally` (3, 4) int64 counts the outcome of each kind of move.
+
+    With `label` >= 0, an edge is tried only if every face around its ends has all its
+    corners labelled `label` in `owner` (Vc,) int64 (see `_owned`); the others
+    go to `deferred` (Q, 2) int64, as many as fit, and a split's new vertex takes the
+    label. Moves on different labels then touch disjoint parts of the state, so passes over
+    them may run at once. With `label` -1 every edge is tried.
+
+    Returns the energy change of the accepted moves and the number of deferred edges.
     """
     np.random.seed(seed)  # noqa: NPY002 (seeds Numba's generator from the caller's Generator)
     capacity = max(8 * edges.shape[0], 1024)
@@ -837,33 +884,41 @@ def run_pass(state, edges, kappa, c_rep, min_cos, seed, max_attempts, tally):
     queue[:n] = edges[:n]
     head, tail = 0, n
     result = np.zeros(2)
-    probe = np.zeros(4, dtype=np.int64)
     alive_v = state.alive_v
     total = 0.0
     attempts = 0
+    n_deferred = 0
     while head < tail and attempts < max_attempts:
         slot = head % capacity
         i, j = queue[slot, 0], queue[slot, 1]
         head += 1
-        if not alive_v[i] or not alive_v[j] or _edge_faces(state, i, j, probe) == 0:
+        if label >= 0 and not _owned(state, owner, label, i, j):
+            if n_deferred < deferred.shape[0]:
+                deferred[n_deferred, 0], deferred[n_deferred, 1] = i, j
+                n_deferred += 1
+            continue
+        if not alive_v[i] or not alive_v[j] or _edge_faces(state, i, j, scratch.probe) == 0:
             continue  # the edge went with an earlier move
         attempts += 1
-        outcome = try_collapse(state, i, j, kappa, c_rep, min_cos, False, result)
+        outcome = try_collapse(state, scratch, i, j, kappa, c_rep, min_cos, False, result)
         tally[COLLAPSE, outcome] += 1
         if outcome == ACCEPTED:
             total += result[0]
             tail = _push_star(state, i, queue, tail, capacity, head)
             continue
-        outcome = try_swap(state, i, j, kappa, c_rep, min_cos, False, result)
+        outcome = try_swap(state, scratch, i, j, kappa, c_rep, min_cos, False, result)
         tally[SWAP, outcome] += 1
         if outcome == ACCEPTED:
             total += result[0]
             tail = _push_star(state, i, queue, tail, capacity, head)
             tail = _push_star(state, j, queue, tail, capacity, head)
             continue
-        outcome = try_split(state, i, j, kappa, c_rep, min_cos, False, result)
+        outcome = try_split(state, scratch, i, j, kappa, c_rep, min_cos, False, result)
         tally[SPLIT, outcome] += 1
         if outcome == ACCEPTED:
             total += result[0]
-            tail = _push_star(state, int(result[1]), queue, tail, capacity, head)
-    return total
+            s = int(result[1])
+            if label >= 0:
+                owner[s] = label
+            tail = _push_star(state, s, queue, tail, capacity, head)
+    return total, n_deferred

@@ -10,6 +10,7 @@ from .. import topology
 from .._progress import Stages
 from .._validate import as_points, positive, require_rng
 from ..errors import InputError
+from ..neighbours import spatial_order
 from ..types import Mesh
 from . import schedule
 from .energy import Energy, distance_energy, representation_energy, spring_energy
@@ -153,10 +154,12 @@ def optimize_mesh(
     both = np.concatenate([points, vertices])
     low, high = both.min(axis=0), both.max(axis=0)
     centre, scale = 0.5 * (low + high), float(np.linalg.norm(high - low)) or 1.0
-    x = (points - centre) / scale
+    # Points in spatial order: the moves walk the points of neighbouring faces, which
+    # then lie close together in memory.
+    x = (points[spatial_order(points)] - centre) / scale
     v = (vertices - centre) / scale
 
-    start = project(x, v, faces)
+    start = project(x, v, faces, in_order=True)
     distance = np.sqrt(start.distance2)
     edge_length = np.median(np.linalg.norm(v[faces[:, 0]] - v[faces[:, 1]], axis=1))
     sigma = max(1.4826 * float(np.median(distance)), 1e-3 * float(edge_length))
@@ -255,8 +258,9 @@ def _optimise_level(x, v, faces, projection, kappa, c_rep, max_fold, sigma, rng,
     """
     min_cos = float(np.cos(np.radians(max_fold)))
     v, projection, _ = fit_vertices(
-        x, v, faces, _edges(faces), kappa=kappa, projection=projection, min_cos=min_cos
-    )
+        x, v, faces, _edges(faces), kappa=kappa, projection=projection, min_cos=min_cos,
+        in_order=True,
+    )  # fmt: skip
     history.append(_entry("fit", kappa, _energy(v, faces, projection, kappa, c_rep), v, faces))
     candidates = None
     for _ in range(schedule.MAX_PASSES):
@@ -267,14 +271,15 @@ def _optimise_level(x, v, faces, projection, kappa, c_rep, max_fold, sigma, rng,
         tally += counts
         moved = state.to_mesh()
         v, faces = moved.vertices, moved.faces
-        projection = project(x, v, faces)
+        projection = project(x, v, faces, guess=state.point_faces, in_order=True)
         history.append(
             _entry("moves", kappa, _energy(v, faces, projection, kappa, c_rep), v, faces)
         )
         edges = _edges(faces)
         fitted, projection, _ = fit_vertices(
-            x, v, faces, edges, kappa=kappa, projection=projection, min_cos=min_cos
-        )
+            x, v, faces, edges, kappa=kappa, projection=projection, min_cos=min_cos,
+            in_order=True,
+        )  # fmt: skip
         moved = np.linalg.norm(fitted - v, axis=1) > schedule.MOVED_SIGMAS * sigma
         v = fitted
         history.append(_entry("fit", kappa, _energy(v, faces, projection, kappa, c_rep), v, faces))

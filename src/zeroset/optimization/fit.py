@@ -47,15 +47,26 @@ class Projection:
     distance2: np.ndarray
 
 
-def project(points: np.ndarray, vertices: np.ndarray, faces: np.ndarray) -> Projection:
+def project(
+    points: np.ndarray,
+    vertices: np.ndarray,
+    faces: np.ndarray,
+    *,
+    guess: np.ndarray | None = None,
+    in_order: bool = False,
+) -> Projection:
     """Project each point (N, 3) exactly onto the mesh (vertices (M, 3), faces (F, 3)).
 
     One search of the bounding-volume hierarchy of :mod:`zeroset.evaluate` gives the
     nearest face, exact over all faces (so no point is lost because its foot falls outside
     a triangle or above a peak), the barycentric coordinates of the closest point in it and
-    the squared distance.
+    the squared distance. `guess` (N,), a face per point from an earlier projection,
+    makes the search faster; `in_order` says that the points are in
+    :func:`~zeroset.neighbours.spatial_order` already.
     """
-    face, bary, distance2 = _kernels.closest_points_on_mesh(points, vertices, faces)
+    face, bary, distance2 = _kernels.closest_points_on_mesh(
+        points, vertices, faces, guess, in_order
+    )
     return Projection(face=face, bary=bary, distance2=distance2)
 
 
@@ -70,6 +81,7 @@ def fit_vertices(
     min_cos: float = -1.0,
     max_iterations: int = 10,
     tolerance: float = 1e-4,
+    in_order: bool = False,
 ) -> tuple[np.ndarray, Projection, int]:
     """Optimise the vertex positions for fixed connectivity; never raises the energy.
 
@@ -94,6 +106,8 @@ def fit_vertices(
         Most alternations of projection and solve.
     tolerance : float
         Stop when an alternation lowers E_dist + E_spring by less than this share.
+    in_order : bool
+        The points are in :func:`~zeroset.neighbours.spatial_order` (faster projections).
 
     Returns
     -------
@@ -104,7 +118,7 @@ def fit_vertices(
         Solves that were kept.
     """
     if projection is None:
-        projection = project(points, vertices, faces)
+        projection = project(points, vertices, faces, in_order=in_order)
     energy = distance_energy(projection.distance2) + spring_energy(vertices, edges, kappa)
     spring = _spring_matrix(edges, vertices.shape[0], kappa)
     pairs = edge_face_pairs(faces)
@@ -115,7 +129,7 @@ def fit_vertices(
         trial_folds = _folds(trial, faces, pairs, min_cos)
         if trial_folds[0] > folds[0] or (trial_folds[0] > 0 and trial_folds[1] < folds[1]):
             break
-        trial_projection = project(points, trial, faces)
+        trial_projection = project(points, trial, faces, guess=projection.face, in_order=in_order)
         trial_energy = distance_energy(trial_projection.distance2) + spring_energy(
             trial, edges, kappa
         )

@@ -2,13 +2,21 @@
 
 :class:`MeshState` holds a mesh in the flat arrays of the compiled moves, together with the
 projection of every data point onto it. Its ``try_*`` methods evaluate one move locally and
-make it when it is legal and lowers the energy; :func:`run_pass` tries them on every edge.
+make it when it is legal and lowers the energy; :meth:`MeshState.run_pass` tries them on
+every edge.
+
+A pass cuts the mesh into slabs of about equal work, labelled alternately, and runs the
+moves of each label on a thread of its own, then the moves near the cuts. A move of one
+label touches nothing of another's (see ``_kernels.optimize.run_pass``), so the result is
+the same however many cores run them, and the same from run to run.
 """
 
 from __future__ import annotations
 
 import enum
+from concurrent.futures import ThreadPoolExecutor
 
+import numba
 import numpy as np
 
 from .._kernels import optimize as _kernels
@@ -19,6 +27,15 @@ __all__ = ["MeshState", "MoveOutcome", "MOVES"]
 
 #: Move kinds, in the order of the rows of a tally.
 MOVES = ("collapse", "split", "swap")
+#: Labels of the slabs a pass cuts the mesh into: the moves of each run on a thread of
+#: their own. Fixed, like the cuts, so that the result does not depend on the machine.
+LABELS = 2
+#: The cuts of each round, as quantiles of the work along the mesh's longest axis. Each
+#: label gets half the work, and the second round's slabs hold the first round's cuts,
+#: one each; a last round runs what is left on one thread.
+ROUND_CUTS = ((0.25, 0.75), (0.5,))
+#: A mesh of fewer faces is not cut: most of its moves would lie near a cut.
+MIN_SLAB_FACES = 256
 
 
 class MoveOutcome(enum.IntEnum):
@@ -64,7 +81,7 @@ class MeshState:
     ) -> None:
         degree = np.bincount(faces.reshape(-1), minlength=vertices.shape[0])
         width = max(32, int(degree.max(initial=0)) + 8)
-        spare_v = int(spare * vertices.shape[0]) + 16
+        spare_v = int(spare * vertices.shape[0]) + 16 * (LABELS + 1)
         self._state = _kernels.build_state(
             np.ascontiguousarray(vertices, dtype=np.float64),
             np.ascontiguousarray(faces, dtype=np.int64),
@@ -76,16 +93,27 @@ class MeshState:
             spare_v,
             2 * spare_v,
         )
+        self._width = width
+        self._scratch = []  # one per thread that has run moves
         self.kappa = float(kappa)
         self.c_rep = float(c_rep)
         self.min_cos = float(np.cos(np.radians(max_fold_degrees)))
         self.last_delta = 0.0
 
+    def _scratches(self, n: int) -> list:
+        """`n` Scratch buffers for the moves, made on first use."""
+        while len(self._scratch) < n:
+            points = self._state.X.shape[0]
+            self._scratch.append(_kernels.make_scratch(points, self._width))
+        return self._scratch[:n]
+
     def _try(self, kernel, i: int, j: int, force: bool) -> MoveOutcome:
         result = np.zeros(2)
+        (scratch,) = self._scratches(1)
         outcome = kernel(
-            self._state, int(i), int(j), self.kappa, self.c_rep, self.min_cos, bool(force), result
-        )
+            self._state, scratch, int(i), int(j), self.kappa, self.c_rep, self.min_cos,
+            bool(force), result,
+        )  # fmt: skip
         self.last_delta = float(result[0])
         return MoveOutcome(outcome)
 
@@ -109,22 +137,121 @@ class MeshState:
         `edges` (E, 2) are the candidates to start from (default: every edge); the edges
         around each accepted move join them. Returns the energy change of the accepted moves
         and the (3, 4) tally of outcomes, rows in the order of ``MOVES``, columns the values
-        of :class:`MoveOutcome`.
+        of :class:`MoveOutcome`. `max_attempts` bounds the moves tried in each run of the
+        compiled pass (see below).
+
+        The moves run in rounds. In each of the first two, the mesh is cut across its
+        longest axis at ``ROUND_CUTS`` into slabs labelled 0, 1, 0, ...; the moves of each
+        label run on a thread of their own, and a move that would touch a face of the
+        other label waits for the next round. The last round runs what is left on one
+        thread.
         """
+        state = self._state
         if edges is None:
-            edges = np.unique(_kernels.edges_of(self._state), axis=0)
+            edges = np.unique(_kernels.edges_of(state), axis=0)
         edges = np.ascontiguousarray(edges[rng.permutation(edges.shape[0])], dtype=np.int64)
+        seeds = rng.integers(0, 2**31 - 1, size=len(ROUND_CUTS) * LABELS + 1)
+        # Each label fills its own share of the free slots, the last round the last share.
+        slots_v = np.linspace(state.sizes[0], state.sizes[3], LABELS + 2).astype(np.int64)
+        slots_f = np.linspace(state.sizes[1], state.sizes[4], LABELS + 2).astype(np.int64)
+        sizes = [
+            np.array([slots_v[k], slots_f[k], 0, slots_v[k + 1], slots_f[k + 1]], dtype=np.int64)
+            for k in range(LABELS + 1)
+        ]
         tally = np.zeros((3, 4), dtype=np.int64)
-        seed = int(rng.integers(0, 2**31 - 1))
-        delta = _kernels.run_pass(
-            self._state, edges, self.kappa, self.c_rep, self.min_cos, seed, max_attempts, tally
+        delta = 0.0
+        lanes = min(LABELS, numba.get_num_threads())
+        scratches = self._scratches(lanes)
+        for round_, cuts in enumerate(ROUND_CUTS):
+            owner = self._slabs(cuts)
+            if owner is None or edges.shape[0] == 0:
+                break
+            label = owner[edges]
+            same = label[:, 0] == label[:, 1]
+            live = np.count_nonzero(state.alive_v)
+            jobs = []
+            for k in range(LABELS):
+                sizes[k][2] = live
+                jobs.append(
+                    (
+                        state._replace(sizes=sizes[k]),
+                        k,
+                        np.ascontiguousarray(edges[same & (label[:, 0] == k)]),
+                        int(seeds[round_ * LABELS + k]),
+                    )
+                )
+            waiting = [edges[~same]]
+            for job_delta, job_tally, job_deferred in self._run_jobs(
+                jobs, owner, scratches, max_attempts
+            ):
+                delta += job_delta
+                tally += job_tally
+                waiting.append(job_deferred)
+            edges = np.concatenate(waiting)
+            edges = np.ascontiguousarray(edges[rng.permutation(edges.shape[0])])
+        sizes[-1][2] = np.count_nonzero(state.alive_v)
+        state.sizes[:] = sizes[-1]
+        last_delta, last_tally, _ = self._pass(
+            state, -1, edges, int(seeds[-1]), scratches[0], np.zeros(1, np.int64), max_attempts
         )
-        return float(delta), tally
+        return delta + last_delta, tally + last_tally
+
+    def _run_jobs(self, jobs, owner, scratches, max_attempts) -> list:
+        """`_pass` for each (state, label, edges, seed) job, one thread per scratch."""
+        lanes = len(scratches)
+
+        def lane_jobs(lane: int) -> list:
+            return [
+                self._pass(*job, scratches[lane], owner, max_attempts) for job in jobs[lane::lanes]
+            ]
+
+        with ThreadPoolExecutor(lanes) as pool:
+            return [result for done in pool.map(lane_jobs, range(lanes)) for result in done]
+
+    def _pass(self, state, label, edges, seed, scratch, owner, max_attempts):
+        """One compiled pass over `edges` within `label` (-1: all)."""
+        tally = np.zeros((3, 4), dtype=np.int64)
+        deferred = np.zeros((max(8 * edges.shape[0], 1024), 2), dtype=np.int64)
+        delta, n_deferred = _kernels.run_pass(
+            state, scratch, owner, label, edges, self.kappa, self.c_rep, self.min_cos, seed,
+            max_attempts, tally, deferred,
+        )  # fmt: skip
+        return float(delta), tally, deferred[:n_deferred]
+
+    def _slabs(self, cuts: tuple[float, ...]) -> np.ndarray | None:
+        """(Vc,) int64 label of each vertex slot (-1: none), or None for a small mesh.
+
+        The `cuts` lie across the longest axis of the vertices' bounding box at those
+        quantiles of the work, a vertex's work being the points on its faces; the slabs
+        between them are labelled 0, 1, 0, ...
+        """
+        state = self._state
+        live_f = np.flatnonzero(state.alive_f)
+        if live_f.size < MIN_SLAB_FACES:
+            return None
+        used = np.flatnonzero(state.alive_v)
+        position = state.V[used]
+        axis = int(np.argmax(np.ptp(position, axis=0)))
+        work = np.zeros(state.alive_v.shape[0])
+        np.add.at(work, state.F[live_f].reshape(-1), np.repeat(state.count[live_f] + 1.0, 3))
+        order = np.argsort(position[:, axis], kind="stable")
+        cumulative = np.cumsum(work[used][order])
+        at = np.searchsorted(cumulative, cumulative[-1] * np.asarray(cuts))
+        owner = np.full(state.alive_v.shape[0], -1, dtype=np.int64)
+        owner[used[order]] = np.searchsorted(at, np.arange(used.size), side="right") % LABELS
+        return owner
 
     @property
     def distance2(self) -> np.ndarray:
         """(N,) squared distance of every point to the face it is assigned to."""
         return self._state.pd.copy()
+
+    @property
+    def point_faces(self) -> np.ndarray:
+        """(N,) int64: the face of :meth:`to_mesh` each point is assigned to (not always
+        its nearest: a move projects its points onto its own faces only)."""
+        alive_f = self._state.alive_f
+        return (np.cumsum(alive_f) - 1)[self._state.pf]
 
     @property
     def vertex_slots(self) -> np.ndarray:
