@@ -10,6 +10,7 @@ from tests import reference
 from zeroset import InputError, optimize, reconstruct, topology
 from zeroset.evaluate import sample_surface
 from zeroset.optimization import MeshState, MoveOutcome, fit_vertices, project, spring_energy
+from zeroset.refine import split_edges
 from zeroset.synthetic import sample_cylinder, sample_sphere
 from zeroset.types import Mesh
 
@@ -381,3 +382,20 @@ def test_one_thread_and_two_give_the_same_mesh(pipe_state):
     np.testing.assert_array_equal(alone.faces, together.faces)
     np.testing.assert_array_equal(alone.vertices, together.vertices)
 
+
+def test_the_default_vertex_cost_does_not_depend_on_the_starting_resolution(cylinder):
+    # The same surface, its every triangle split in four: the vertex cost stays (it was
+    # the points per starting vertex times sigma^2, four times smaller here), and the
+    # optimised meshes come out alike.
+    sample, start, result = cylinder
+    edges = topology.undirected_edges(start.faces)[0]
+    fine = split_edges(start, np.ones(edges.shape[0], dtype=bool))
+    assert fine.n_faces == 4 * start.n_faces
+    from_fine = optimize(fine, sample.points, rng=0)
+    assert from_fine.parameters["c_rep"] == pytest.approx(result.parameters["c_rep"], rel=1e-6)
+    assert 0.67 < from_fine.mesh.n_faces / result.mesh.n_faces < 1.5
+    truth = [
+        np.abs(sample.distance(sample_surface(mesh, 50_000, rng=0)[0])).mean()
+        for mesh in (result.mesh, from_fine.mesh)
+    ]
+    assert truth[1] < 1.2 * truth[0]

@@ -86,9 +86,9 @@ def optimize_mesh(
     points : (N, 3) array_like of float
         The data, in the mesh's coordinates; phase 2 may use more points than phase 1.
     c_rep : float, optional
-        Cost of a vertex, in the normalised frame (bounding-box diagonal 1). Default:
-        points per starting vertex times the squared noise level (see
-        :mod:`zeroset.optimization.schedule`).
+        Cost of a vertex, in the normalised frame (bounding-box diagonal 1). Default: the
+        squared noise level times the logarithm of the number of points, whatever the
+        starting mesh (see :mod:`zeroset.optimization.schedule`).
     kappa : float, optional
         First spring constant of the schedule, in the same frame; later ones are smaller
         by the factors in ``schedule.KAPPA_STEPS``. Default: 1e-2 times the points per
@@ -180,10 +180,10 @@ def optimize_mesh(
     projection = _subset(start, keep)
     per_vertex = x.shape[0] / vertices.shape[0]
     if c_rep is None:
-        c_rep = schedule.C_REP_FACTOR * per_vertex * sigma**2
+        c_rep = schedule.C_REP_FACTOR * sigma**2 * np.log(x.shape[0])
         notes.append(
-            f"c_rep = {c_rep:.6g}: {schedule.C_REP_FACTOR:g} x {per_vertex:.3g} points per "
-            "starting vertex x sigma^2 (normalised)"
+            f"c_rep = {c_rep:.6g}: {schedule.C_REP_FACTOR:g} x sigma^2 x ln {x.shape[0]} points "
+            "(normalised)"
         )
     if kappa is None:
         kappa = schedule.KAPPA_START * per_vertex
