@@ -54,7 +54,7 @@ class ReconstructionConfig:
     )
     contour: str = _opt(
         "marching",
-        "contouring: marching (marching cubes) or cubes (Method of Cubes, one vertex per cube)",
+        "contouring: marching (marching cubes) or cubes (Method of Cubes, one vertex per octree cell)",
         choices=CONTOURS,
     )
     surface: str = _opt(

@@ -26,7 +26,7 @@ from . import topology
 from ._progress import Stages
 from ._validate import as_points, as_viewpoints
 from .config import ReconstructionConfig
-from .contour import marching_cubes, method_of_cubes
+from .contour import adaptive_cubes, marching_cubes
 from .density import (
     BRIDGE_LENGTH,
     BRIDGE_REACH,
@@ -42,6 +42,7 @@ from .errors import InputError, ReconstructionError, SurfaceWarning
 from .jets import evaluate_jets, fit_jets, orient_jets
 from .neighbours import build_tree, knn, restrict, spatial_order
 from .normals import tangent_planes
+from .octree import cell_sizes
 from .optimization import OptimizationResult, optimize_mesh
 from .orientation import UNTRUSTED, orient_normals
 from .parameters import estimate_parameters
@@ -214,7 +215,7 @@ def reconstruct(
         field_, bridges, jets = stages.run(
             "signed distance", distance_field, cloud, fitted, normals, parameters, config
         )
-        mesh = stages.run("contour", contour, field_, fitted, normals, config)
+        mesh = stages.run("contour", contour, field_, fitted, normals, parameters, config)
         support = data_support(fitted, bridges, parameters)
         mesh = finish(mesh, support, jets, parameters, config, stages)
         initial_mesh = Mesh(vertices=mesh.vertices + cloud.offset, faces=mesh.faces)
@@ -649,11 +650,27 @@ def distance_field(cloud: LocalCloud, fitted: FittedPlanes, normals, parameters,
     return (field_, bridges, jets), counts
 
 
-def contour(field_: DistanceField, fitted: FittedPlanes, normals, config) -> tuple[Mesh, dict]:
-    """Stage "contour": marching cubes, or the Method of Cubes on the points of `fitted`."""
-    if config.contour == "cubes":
-        return method_of_cubes(field_, fitted.points, fitted.planes.centroids, normals), {}
-    return marching_cubes(field_), {}
+def contour(field_: DistanceField, fitted: FittedPlanes, normals, parameters, config):
+    """Stage "contour": marching cubes, or the Method of Cubes on the points of `fitted`,
+    in octree cells as large as the local fits' curvature and the density allow
+    (`zeroset.octree`; one cube everywhere for ``surface="planes"``, which has no fits)."""
+    if config.contour != "cubes":
+        return marching_cubes(field_), {}
+    sizes = None
+    if fitted.jets is not None:
+        nearest = build_tree(fitted.jets.centres).query(fitted.points, workers=-1)[1]
+        sizes = cell_sizes(
+            fitted.jets.curvature[nearest],
+            fitted.density.radii,
+            noise=parameters.noise,
+            cube_size=parameters.cube_size,
+            rho_delta=parameters.rho_delta,
+        )
+    mesh, level, counts = adaptive_cubes(
+        field_, fitted.points, fitted.planes.centroids, normals, sizes=sizes
+    )
+    counts["cell_levels"] = np.bincount(level, minlength=1).tolist()
+    return mesh, counts
 
 
 def data_support(fitted: FittedPlanes, bridges: np.ndarray, parameters: Parameters):

@@ -1,0 +1,228 @@
+"""Octree cells for the Method of Cubes: merged where allowed, with no crack, fold or pinch."""
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import zeroset
+from zeroset import _lattice, topology
+from zeroset.contour import adaptive_cubes, method_of_cubes
+from zeroset.octree import MAX_LEVEL, MIN_ANGLE, cell_levels, cell_sizes
+from zeroset.repair import split_nonmanifold_vertices
+from zeroset.synthetic import sample_sphere, sample_torus
+from zeroset.types import DistanceField
+
+
+def _grid_field(values, cube=1.0):
+    """A field on the full (a, b, c) grid of `values`, in key order."""
+    ijk = np.argwhere(np.ones(values.shape, bool))
+    order = np.argsort(_lattice.encode(ijk))
+    return DistanceField(
+        vertices_ijk=ijk[order],
+        values=values.reshape(-1)[order],
+        origin=np.zeros(3),
+        cube_size=cube,
+    )
+
+
+def _shape_counts(mesh):
+    """Boundary loops, components and Euler characteristic of a bow-tie-free mesh."""
+    return (
+        len(topology.boundary_loops(mesh.faces)),
+        topology.face_components(mesh.faces, mesh.n_vertices)[0],
+        topology.euler_characteristic(mesh),
+    )
+
+
+def _assert_manifold(mesh, checked=None):
+    """Edge-manifold, oriented, no degenerate or repeated face, and one fan of faces (no
+    pinch) around every vertex, or every `checked` (V,) one."""
+    assert topology.is_edge_manifold(mesh.faces)
+    assert topology.is_consistently_oriented(mesh.faces)
+    ordered = np.sort(mesh.faces, axis=1)
+    assert np.all(ordered[:, :2] != ordered[:, 1:])
+    assert np.unique(ordered, axis=0).shape[0] == mesh.n_faces
+    fan = topology.corner_fans(mesh.faces, topology.edge_ids(mesh.faces, mesh.n_vertices)[0])[0]
+    corner = mesh.faces.reshape(-1)
+    fans = np.bincount(corner[np.unique(fan, return_index=True)[1]], minlength=mesh.n_vertices)
+    checked = np.ones(mesh.n_vertices, bool) if checked is None else checked
+    assert np.all(fans[checked] <= 1)
+
+
+def _smooth_field(seed, size, undefined):
+    """A random smooth field: a few spheres and a tilted plane, some corners undefined."""
+    rng = np.random.default_rng(seed)
+    ijk = np.stack(np.meshgrid(*[np.arange(size, dtype=float)] * 3, indexing="ij"), -1)
+    centres = rng.uniform(0, size - 1, (3, 3))
+    radii = rng.uniform(2.0, size / 2.0, 3)
+    spheres = np.linalg.norm(ijk[..., None, :] - centres, axis=-1) - radii
+    plane = ijk @ rng.normal(size=3) - rng.uniform(0, size)
+    values = np.minimum(spheres.min(axis=-1), plane + rng.uniform(size, 3 * size))
+    values[rng.random(values.shape) < undefined] = np.nan
+    return _grid_field(values)
+
+
+@settings(deadline=None, max_examples=40)
+@given(
+    seed=st.integers(0, 2**32 - 1),
+    size=st.integers(6, 20),
+    undefined=st.sampled_from([0.0, 0.0, 0.002, 0.02]),
+    smooth=st.booleans(),
+    largest=st.integers(0, MAX_LEVEL),
+)
+def test_merged_cells_keep_a_manifold_oriented_crack_free_mesh(
+    seed, size, undefined, smooth, largest
+):
+    # Random fields (smooth spheres and planes, or random signs with every ambiguous case)
+    # and a random largest cell per data point: the merges may leave no crack (the same
+    # boundary loops, components and Euler characteristic as the single cubes), no pinch,
+    # no flipped or sliver face, and cells at most one level apart along an edge.
+    rng = np.random.default_rng(seed)
+    if smooth:
+        field = _smooth_field(seed, size, undefined)
+    else:
+        values = rng.normal(size=(size,) * 3) * 0.3
+        values[rng.random(values.shape) < undefined] = np.nan
+        field = _grid_field(values)
+    points = rng.uniform(0.0, size - 1, (300, 3))
+    planes = (points, points + [0.0, 0.0, 1e3], np.tile([0.0, 0.0, 1.0], (300, 1)))
+    sizes = 2.0 ** rng.uniform(0.0, largest + 1, 300)
+    single = method_of_cubes(field, *planes)
+    mesh, level, counts = adaptive_cubes(field, *planes, sizes=sizes)
+    assert set(np.unique(level)) <= set(range(largest + 1))
+    if mesh.n_faces == 0:
+        assert single.n_faces == 0
+        return
+    _assert_manifold(mesh, checked=level > 0)  # the single cubes may pinch on a boundary
+    before, _ = split_nonmanifold_vertices(single)
+    after, _ = split_nonmanifold_vertices(mesh)
+    assert _shape_counts(after) == _shape_counts(before)
+    edges = topology.undirected_edges(mesh.faces)[0]
+    assert np.abs(np.diff(level[edges], axis=1)).max() <= 1
+    merged = (level[mesh.faces] > 0).any(axis=1)
+    angles = zeroset.evaluate.smallest_angles(mesh)
+    assert np.all(angles[merged] >= MIN_ANGLE - 1e-9)
+    assert mesh.n_faces <= single.n_faces
+    assert sum(counts.get("cells_merged", [])) == 0 or mesh.n_vertices < single.n_vertices
+
+
+def test_a_plane_merges_into_the_largest_cells_away_from_its_boundary():
+    # The plane z = 1.3 + 0.1 x through a 34 x 34 x 8 grid, every point allowing 8 cubes.
+    x, y, z = np.meshgrid(np.arange(34.0), np.arange(34.0), np.arange(8.0), indexing="ij")
+    field = _grid_field(z - 1.3 - 0.1 * x)
+    rng = np.random.default_rng(0)
+    points = np.c_[rng.uniform(0, 33, (4000, 2)), np.zeros(4000)]
+    points[:, 2] = 1.3 + 0.1 * points[:, 0]
+    normal = np.array([-0.1, 0.0, 1.0]) / np.hypot(0.1, 1.0)
+    normals = np.tile(normal, (4000, 1))
+    single = method_of_cubes(field, points, points, normals)
+    mesh, level, counts = adaptive_cubes(field, points, points, normals, sizes=np.full(4000, 8.0))
+    _assert_manifold(mesh)
+    assert _shape_counts(mesh) == _shape_counts(single) == (1, 1, 1)
+    assert level.max() >= 2 and counts["cells_merged"][1] > 0
+    assert mesh.n_faces < single.n_faces / 2
+    # Merged vertices are means of vertices on the data's plane: on it too.
+    np.testing.assert_allclose(mesh.vertices[:, 2], 1.3 + 0.1 * mesh.vertices[:, 0], atol=1e-9)
+    # The boundary is the single cubes' boundary, vertex for vertex.
+    rim = np.unique(topology.boundary_edges(mesh.faces))
+    rim_single = np.unique(topology.boundary_edges(single.faces))
+    np.testing.assert_allclose(
+        np.sort(mesh.vertices[rim], axis=0), np.sort(single.vertices[rim_single], axis=0)
+    )
+    assert np.all(level[rim] == 0)
+
+
+def test_cells_follow_the_sizes_the_points_allow():
+    # Points allow one cube where x < 24 and eight beyond: the cells grow across the plane.
+    x, y, z = np.meshgrid(np.arange(73.0), np.arange(49.0), np.arange(4.0), indexing="ij")
+    field = _grid_field(z - 1.5)
+    rng = np.random.default_rng(1)
+    points = np.c_[rng.uniform(0, 72, 20_000), rng.uniform(0, 48, 20_000), np.full(20_000, 1.5)]
+    normals = np.tile([0.0, 0.0, 1.0], (20_000, 1))
+    sizes = np.where(points[:, 0] < 24, 1.0, 8.0)
+    mesh, level, _ = adaptive_cubes(field, points, points, normals, sizes=sizes)
+    _assert_manifold(mesh)
+    x, y = mesh.vertices[:, 0], mesh.vertices[:, 1]
+    assert np.all(level[x < 23] == 0)
+    # Vertices per unit area, away from the boundary: one per cube where the points allow
+    # one cube; at most one per 4 x 4 cubes, on average, where they allow eight.
+    middle = (y > 12) & (y < 36)
+    fine = np.count_nonzero(middle & (x > 4) & (x < 20)) / (16 * 24)
+    coarse = np.count_nonzero(middle & (x > 40) & (x < 64)) / (24 * 24)
+    assert fine == pytest.approx(1.0)
+    assert coarse <= fine / 16
+
+
+def test_cell_sizes_keep_the_chord_sag_within_the_refinement_tolerance():
+    kappa = np.array([1e-9, 0.5, 4.0, 40.0])
+    sizes = cell_sizes(kappa, np.full(4, 0.02), noise=0.002, cube_size=0.02, rho_delta=0.02)
+    # Flat: only the density limit (cube_size * radius / rho_delta) holds the cell.
+    assert sizes[0] == pytest.approx(0.02)
+    sag = sizes[1:] ** 2 * kappa[1:] / 8
+    assert np.all(sag <= np.maximum(1e-4 / kappa[1:], 0.1 * 0.002) * (1 + 1e-12))
+    # Sparser points (a larger radius) allow larger cells.
+    wide = cell_sizes(
+        np.full(2, 1e-9), np.array([0.02, 0.08]), noise=0.002, cube_size=0.02, rho_delta=0.02
+    )
+    assert wide[1] == pytest.approx(4 * wide[0])
+    np.testing.assert_array_equal(
+        cell_levels(np.array([0.01, 0.02, 0.05, 1.0]), 0.02), [0, 0, 1, 3]
+    )
+
+
+@pytest.mark.parametrize(
+    "sample, distance, euler",
+    [
+        (sample_sphere(20_000, noise=0.002, rng=3), lambda x: np.linalg.norm(x, axis=1) - 1.0, 2),
+        (
+            sample_torus(30_000, noise=0.002, rng=4),
+            lambda x: np.hypot(np.hypot(x[:, 0], x[:, 1]) - 1.0, x[:, 2]) - 0.35,
+            0,
+        ),
+    ],
+    ids=["sphere", "torus"],
+)
+def test_method_of_cubes_vertices_lie_on_the_true_surface(sample, distance, euler):
+    # Noise 2 mm on a sphere of radius 1 m and a torus of radii 1 m and 0.35 m: every
+    # vertex lies within 2 mm (one noise sigma) of the analytic surface, with no bias
+    # beyond 0.3 mm either way.
+    result = zeroset.reconstruct(sample.points, contour="cubes")
+    d = distance(result.mesh.vertices)
+    assert np.abs(d).max() < 0.002
+    assert abs(np.mean(d)) < 0.0003
+    assert topology.euler_characteristic(result.mesh) == euler
+
+
+def test_merged_vertices_on_a_sphere_lie_within_the_sag_of_their_cells():
+    # A unit sphere's exact distance on a 0.05 lattice, data points on the sphere and every
+    # point allowing 8 cubes: a merged vertex, the mean of vertices on the sphere within a
+    # cell of side s, lies inside it by at most the depth 3 s^2 / 8 of a cap whose rim fits
+    # in the cell, and never outside it by more than the single cubes' vertices do.
+    cube = 0.05
+    steps = np.arange(-24, 25)
+    ijk = np.stack(np.meshgrid(steps, steps, steps, indexing="ij"), -1).reshape(-1, 3)
+    values = np.linalg.norm(cube * ijk, axis=1) - 1.0
+    keep = np.abs(values) < 0.2
+    order = np.argsort(_lattice.encode(ijk[keep]))
+    field = DistanceField(
+        vertices_ijk=ijk[keep][order],
+        values=values[keep][order],
+        origin=np.zeros(3),
+        cube_size=cube,
+    )
+    rng = np.random.default_rng(1)
+    normals = rng.normal(size=(50_000, 3))
+    normals /= np.linalg.norm(normals, axis=1)[:, None]
+    sizes = np.full(50_000, 8 * cube)
+    single = method_of_cubes(field, normals, normals, normals)
+    mesh, level, _ = adaptive_cubes(field, normals, normals, normals, sizes=sizes)
+    _assert_manifold(mesh)
+    assert _shape_counts(mesh) == (0, 1, 2)
+    assert level.max() >= 2 and mesh.n_vertices < single.n_vertices / 4
+    d = np.linalg.norm(mesh.vertices, axis=1) - 1.0
+    slack = np.abs(np.linalg.norm(single.vertices, axis=1) - 1.0).max()
+    side = cube * 2.0**level
+    assert np.all(d >= -(3 * side**2 / 8 + slack))
+    assert np.all(d <= slack)
+    assert topology.signed_volume(mesh) > 0
