@@ -6,6 +6,7 @@ from zeroset.density import (
     BRIDGE_REACH,
     RADIUS_CAP,
     gap_bridges,
+    local_spacing,
     point_radii,
     range_noise,
     sector_distances,
@@ -45,6 +46,22 @@ def test_radius_grows_where_the_sampling_is_sparse(rng):
     # Six of eight directions reach a neighbour at the diagonal, 25 sqrt(2) mm.
     np.testing.assert_allclose(np.median(sparse_radii), 0.025 * np.sqrt(2) + 0.001, rtol=0.05)
     assert radii.max() <= RADIUS_CAP * 0.02
+
+
+def test_local_spacing_is_not_held_to_the_clouds_radius(rng):
+    # The dense half's spacing is its own (10 mm to the diagonal neighbour), below the
+    # cloud's rho+delta that floors its radius; the sparse half's is 25 mm's.
+    dense = _grid(np.arange(0.0, 0.3, 0.01), np.arange(0.0, 0.6, 0.01), rng)
+    sparse = _grid(np.arange(0.3, 0.6, 0.025), np.arange(0.0, 0.6, 0.025), rng)
+    points = np.concatenate([dense, sparse])
+    neighbours = knn(points, 32)
+    sectors, _ = sector_distances(points, neighbours.indices, neighbours.distances)
+    spacing = local_spacing(sectors, neighbours)
+    inner = (np.abs(points[:, 1] - 0.3) < 0.2) & (np.abs(points[:, 0] - 0.3) > 0.1)
+    np.testing.assert_allclose(spacing[inner & (points[:, 0] < 0.3)], 0.01 * np.sqrt(2))
+    np.testing.assert_allclose(spacing[inner & (points[:, 0] > 0.3)], 0.025 * np.sqrt(2))
+    radii = point_radii(sectors, neighbours, rho_delta=0.02, margin=0.001)
+    np.testing.assert_array_equal(radii[inner], np.maximum(spacing[inner] + 0.001, 0.02))
 
 
 def test_gaps_between_bands_are_bridged_and_the_field_is_defined_across_them(rng):

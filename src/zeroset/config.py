@@ -54,7 +54,7 @@ class ReconstructionConfig:
     )
     contour: str = _opt(
         "marching",
-        "contouring: marching (marching cubes) or cubes (Method of Cubes, one vertex per octree cell)",
+        "contouring: marching (marching cubes) or cubes (Method of Cubes, a vertex per cell)",
         choices=CONTOURS,
     )
     surface: str = _opt(

@@ -22,6 +22,7 @@ __all__ = [
     "SECTORS",
     "SECTORS_NEEDED",
     "gap_bridges",
+    "local_spacing",
     "point_radii",
     "range_noise",
     "sector_distances",
@@ -136,11 +137,20 @@ def point_radii(sectors, neighbours, *, rho_delta: float, margin) -> np.ndarray:
     margin : float or (N,) float64
         delta, the noise margin added to the spacing.
     """
+    radii = local_spacing(sectors, neighbours) + margin
+    return np.where(radii <= RADIUS_CAP * rho_delta, np.maximum(radii, rho_delta), rho_delta)
+
+
+def local_spacing(sectors, neighbours) -> np.ndarray:
+    """(N,) spacing around every point: the radius reaching neighbours in SECTORS_NEEDED of
+    SECTORS directions, smoothed by the median over its SMOOTH_K nearest neighbours.
+
+    `sectors` (N, SECTORS) as `sector_distances` gives; `neighbours` with itself first.
+    """
     spacing = np.sort(sectors, axis=1)[:, SECTORS_NEEDED - 1]
     columns = neighbours.indices[:, :SMOOTH_K]
     columns = np.where(columns >= 0, columns, np.arange(columns.shape[0])[:, None])
-    radii = np.median(spacing[columns], axis=1) + margin
-    return np.where(radii <= RADIUS_CAP * rho_delta, np.maximum(radii, rho_delta), rho_delta)
+    return np.median(spacing[columns], axis=1)
 
 
 def gap_bridges(points, sectors, *, rho_delta: float, tree=None, normals=None) -> np.ndarray:

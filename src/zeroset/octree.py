@@ -32,7 +32,13 @@ from .refine import CHORD_NOISE, CHORD_RELATIVE
 from .topology import corner_fans, edge_ids, face_area_vectors, half_edges, vertex_normals
 from .types import Mesh
 
-__all__ = ["MAX_LEVEL", "MIN_ANGLE", "cell_levels", "cell_sizes", "merge_cells"]
+__all__ = [
+    "MAX_LEVEL",
+    "MIN_ANGLE",
+    "cell_levels",
+    "cell_sizes",
+    "merge_cells",
+]
 
 #: Coarsest cell: 2^MAX_LEVEL cubes a side.
 MAX_LEVEL = 3
@@ -60,27 +66,36 @@ _RING = np.array(
 )
 
 
-def cell_sizes(curvature, radii, *, noise: float, cube_size: float, rho_delta: float):
-    """(N,) largest cell side each point allows, in data units.
+def cell_sizes(curvature, spacing, *, noise: float, noise_factor: float, cube_factor: float):
+    """(N,) side of the cell each point asks for, in data units.
 
-    A cell's flat faces cut the chords of a surface of curvature kappa, sagging by
-    ``L^2 kappa / 8`` over a side L: L is as long as `zeroset.refine` lets an edge be
-    (``CHORD_RELATIVE / kappa`` or ``CHORD_NOISE * noise``, whichever is larger). A cell is
-    also no larger, over `cube_size`, than the point's radius (rho+delta where the data
-    lie at the median density) over `rho_delta`, so cells follow the density of the data.
+    The data support a cell of ``cube_factor * (spacing + noise_factor * noise)``: the cube
+    that the point's own spacing would choose (`zeroset.parameters.estimate_parameters`
+    chooses the cloud's from its sparser points). Where the surface is flat the cell may be
+    larger: a cell's flat faces cut the chords of a surface of curvature kappa, sagging by
+    ``L^2 kappa / 8`` over a side L, and L may grow while that stays within the tolerance
+    of `zeroset.refine` (``CHORD_RELATIVE / kappa`` or ``CHORD_NOISE * noise``, whichever
+    is larger). Where the surface bends more than the data resolve, `zeroset.refine`
+    splits the edges further.
 
     Parameters
     ----------
     curvature : (N,) array_like of float
         Largest absolute principal curvature at each point, in 1 / data units.
-    radii : (N,) array_like of float
-        Each point's radius (`zeroset.density.point_radii`).
-    noise, cube_size, rho_delta : float
-        Noise of one point, the lattice spacing and the global rho+delta.
+    spacing : (N,) array_like of float
+        Spacing of the points around each one (`zeroset.density.local_spacing`); where it
+        is not finite (a point at an edge) the cell is as small as the noise allows.
+    noise : float
+        Noise of one point, in data units.
+    noise_factor, cube_factor : float
+        rho+delta is spacing + `noise_factor` noise; the cube is `cube_factor` rho+delta.
     """
-    kappa = np.maximum(np.asarray(curvature, dtype=np.float64), 1e-300)
+    kappa = np.maximum(np.asarray(curvature, dtype=np.float64), 1e-150)  # sizes stay finite
     tolerance = np.maximum(CHORD_RELATIVE / kappa, CHORD_NOISE * noise)
-    return np.minimum(np.sqrt(8.0 * tolerance / kappa), cube_size * np.asarray(radii) / rho_delta)
+    spacing = np.asarray(spacing, dtype=np.float64)
+    spacing = np.where(np.isfinite(spacing), spacing, 0.0)  # no neighbours around: an edge
+    supported = cube_factor * (spacing + noise_factor * noise)
+    return np.maximum(np.sqrt(8.0 * tolerance / kappa), supported)
 
 
 def cell_levels(sizes: np.ndarray, cube_size: float, max_level: int = MAX_LEVEL) -> np.ndarray:
@@ -301,9 +316,10 @@ def flip_edges(vertices: np.ndarray, faces: np.ndarray, movable: np.ndarray) -> 
         gain = _pair_angle(vertices, new) - _pair_angle(vertices, old)
         normal = face_area_vectors(vertices, old.reshape(-1, 3)).reshape(-1, 2, 3)
         length = np.linalg.norm(normal, axis=2)
-        flat = np.einsum("ij,ij->i", normal[:, 0], normal[:, 1]) >= np.cos(
-            np.radians(FLIP_FOLD)
-        ) * length[:, 0] * length[:, 1]
+        flat = (
+            np.einsum("ij,ij->i", normal[:, 0], normal[:, 1])
+            >= np.cos(np.radians(FLIP_FOLD)) * length[:, 0] * length[:, 1]
+        )
         turned = face_area_vectors(vertices, new.reshape(-1, 3)).reshape(-1, 2, 3)
         keeps = (np.einsum("ikj,ij->ik", turned, normal.sum(axis=1)) > 0).all(axis=1)
         diagonal = c * np.int64(n) + d

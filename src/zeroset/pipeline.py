@@ -33,6 +33,7 @@ from .density import (
     BRIDGE_STEP,
     SMOOTH_K,
     gap_bridges,
+    local_spacing,
     point_radii,
     range_noise,
     sector_distances,
@@ -357,6 +358,8 @@ class Density:
     extent : (M, 2) float64
         Distance to its ``SMOOTH_K``-th nearest neighbour and to the farthest one found
         (`find_neighbours`): how far the neighbourhoods defined by a count of points reach.
+    spacing : (M,) float64
+        Spacing of the points around each one (`zeroset.density.local_spacing`).
     noise_model : (intercept, slope) of float, or None
         Noise as a straight-line function of range (`zeroset.density.range_noise`), when
         the sensor positions are known.
@@ -365,6 +368,7 @@ class Density:
     radii: np.ndarray
     sectors: np.ndarray
     extent: np.ndarray
+    spacing: np.ndarray
     noise_model: tuple[float, float] | None = None
 
 
@@ -534,7 +538,7 @@ def measure_radii(cells: Cells, neighbours, parameters: Parameters, config) -> t
         sectors, neighbours, rho_delta=parameters.rho_delta, margin=config.noise_factor * noise
     )
     extent = neighbours.distances[:, [SMOOTH_K - 1, -1]]
-    return Density(radii, sectors, extent, model), {}
+    return Density(radii, sectors, extent, local_spacing(sectors, neighbours), model), {}
 
 
 def drop_sparse_points(cells: Cells, neighbours, density: Density, parameters: Parameters, config):
@@ -559,7 +563,11 @@ def drop_sparse_points(cells: Cells, neighbours, density: Density, parameters: P
         viewpoints = viewpoints[keep]
     cells = Cells(cells.points[keep], row[cells.cell], viewpoints)
     density = Density(
-        density.radii[keep], density.sectors[keep], density.extent[keep], density.noise_model
+        density.radii[keep],
+        density.sectors[keep],
+        density.extent[keep],
+        density.spacing[keep],
+        density.noise_model,
     )
     return (cells, restrict(neighbours, keep), density), counts
 
@@ -652,25 +660,31 @@ def distance_field(cloud: LocalCloud, fitted: FittedPlanes, normals, parameters,
 
 def contour(field_: DistanceField, fitted: FittedPlanes, normals, parameters, config):
     """Stage "contour": marching cubes, or the Method of Cubes on the points of `fitted`,
-    in octree cells as large as the local fits' curvature and the density allow
-    (`zeroset.octree`; one cube everywhere for ``surface="planes"``, which has no fits)."""
+    in octree cells of the sizes the points ask for (`point_cell_sizes`; one cube
+    everywhere for ``surface="planes"``, which has no local fits)."""
     if config.contour != "cubes":
         return marching_cubes(field_), {}
-    sizes = None
-    if fitted.jets is not None:
-        nearest = build_tree(fitted.jets.centres).query(fitted.points, workers=-1)[1]
-        sizes = cell_sizes(
-            fitted.jets.curvature[nearest],
-            fitted.density.radii,
-            noise=parameters.noise,
-            cube_size=parameters.cube_size,
-            rho_delta=parameters.rho_delta,
-        )
+    sizes = None if fitted.jets is None else point_cell_sizes(fitted, parameters, config)
     mesh, level, counts = adaptive_cubes(
         field_, fitted.points, fitted.planes.centroids, normals, sizes=sizes
     )
-    counts["cell_levels"] = np.bincount(level, minlength=1).tolist()
+    counts["cell_sides"] = {
+        f"{field_.cube_size * 2**lv:.4g}": int(n) for lv, n in enumerate(np.bincount(level)) if n
+    }
     return mesh, counts
+
+
+def point_cell_sizes(fitted: FittedPlanes, parameters: Parameters, config) -> np.ndarray:
+    """(N,) cell side each point of `fitted` asks for (`zeroset.octree.cell_sizes`), with
+    the curvature of its nearest local fit."""
+    nearest = build_tree(fitted.jets.centres).query(fitted.points, workers=-1)[1]
+    return cell_sizes(
+        fitted.jets.curvature[nearest],
+        fitted.density.spacing,
+        noise=parameters.noise,
+        noise_factor=config.noise_factor,
+        cube_factor=config.cube_factor,
+    )
 
 
 def data_support(fitted: FittedPlanes, bridges: np.ndarray, parameters: Parameters):
