@@ -11,6 +11,8 @@ from zeroset.contour import marching_cubes, method_of_cubes
 from zeroset.repair import split_nonmanifold_vertices
 from zeroset.types import DistanceField
 
+from .fields import grid_field, tilted_plane
+
 
 def _field(values_of, half_width, cube, band=None):
     steps = np.arange(-half_width, half_width + 1)
@@ -28,18 +30,6 @@ def _field(values_of, half_width, cube, band=None):
 
 def _sphere(x):
     return np.linalg.norm(x - 0.0137, axis=1) - 1.0
-
-
-def _grid_field(values, cube=1.0):
-    """A field on the full (a, b, c) grid of `values`, in key order."""
-    ijk = np.argwhere(np.ones(values.shape, bool))
-    order = np.argsort(_lattice.encode(ijk))
-    return DistanceField(
-        vertices_ijk=ijk[order],
-        values=values.reshape(-1)[order],
-        origin=np.zeros(3),
-        cube_size=cube,
-    )
 
 
 def _no_planes():
@@ -62,7 +52,7 @@ def _random_field(seed, size, undefined, cube):
     rng = np.random.default_rng(seed)
     values = rng.normal(size=(size, size, size)) * 0.3 * cube
     values[rng.random(values.shape) < undefined] = np.nan
-    return _grid_field(values, cube)
+    return grid_field(values, cube)
 
 
 FIELDS = given(
@@ -155,13 +145,8 @@ def test_cubes_on_any_field_give_an_edge_manifold_oriented_mesh(seed, size, unde
 
 def test_cubes_give_one_vertex_per_cube_on_the_averaged_plane():
     # The plane z = 0.3 + 0.1 x through a 6 x 6 x 3 grid; the data lie on z = 0.35 + 0.1 x.
-    x, y, z = np.meshgrid(np.arange(6.0), np.arange(6.0), np.arange(3.0), indexing="ij")
-    field = _grid_field(z - 0.3 - 0.1 * x)
-    rng = np.random.default_rng(0)
-    points = np.c_[rng.uniform(0, 5, (4000, 2)), np.zeros(4000)]
-    points[:, 2] = 0.35 + 0.1 * points[:, 0]
-    normal = np.array([-0.1, 0.0, 1.0]) / np.hypot(0.1, 1.0)
-    mesh = method_of_cubes(field, points, points, np.tile(normal, (4000, 1)))
+    field, points, normals = tilted_plane((6, 6, 3), 0.3, lift=0.05)
+    mesh = method_of_cubes(field, points, points, normals)
     assert mesh.n_vertices == 5 * 5  # the crossed cubes
     assert mesh.n_faces == 2 * 4 * 4  # two triangles around each inner vertical edge
     np.testing.assert_allclose(mesh.vertices[:, 2], 0.35 + 0.1 * mesh.vertices[:, 0], atol=1e-12)
@@ -195,7 +180,7 @@ def test_cubes_split_the_vertex_of_a_cube_holding_two_sheets():
     # vertex per patch keeps two separate planes.
     ijk = np.meshgrid(*[np.arange(8.0)] * 3, indexing="ij")
     height = (sum(ijk) - 7.5) / np.sqrt(3.0)
-    mesh = method_of_cubes(_grid_field(np.abs(height) - 0.5), *_no_planes())
+    mesh = method_of_cubes(grid_field(np.abs(height) - 0.5), *_no_planes())
     _assert_valid(mesh)
     assert topology.face_components(mesh.faces, mesh.n_vertices)[0] == 2
     distance = np.abs(np.abs((mesh.vertices.sum(axis=1) - 7.5) / np.sqrt(3.0)) - 0.5)
@@ -214,7 +199,7 @@ def test_cubes_meeting_twice_across_an_ambiguous_face_stay_manifold():
         for c in range(8):
             i, j, k = np.add(base, [(c & 1), (c >> 1) & 1, (c >> 2) & 1])
             values[i, j, k] = abs(values[i, j, k]) * (1 if config >> c & 1 else -1)
-    mesh = method_of_cubes(_grid_field(values), *_no_planes())
+    mesh = method_of_cubes(grid_field(values), *_no_planes())
     _assert_valid(mesh)
     # Each of the two meetings got its own vertex on the shared face z = 2.
     on_face = np.isclose(mesh.vertices[:, 2], 2.0) & np.all(
@@ -227,7 +212,7 @@ def test_cubes_with_an_undefined_corner_leave_a_boundary():
     x, y, z = np.meshgrid(np.arange(11.0), np.arange(11.0), np.arange(3.0), indexing="ij")
     values = z - 0.8
     values[5, 5, 1] = np.nan  # the eight cubes around it are skipped
-    mesh = method_of_cubes(_grid_field(values), *_no_planes())
+    mesh = method_of_cubes(grid_field(values), *_no_planes())
     _assert_valid(mesh)
     assert len(topology.boundary_loops(mesh.faces)) == 2
 
@@ -235,5 +220,5 @@ def test_cubes_with_an_undefined_corner_leave_a_boundary():
 def test_cubes_reject_mismatched_planes():
     with pytest.raises(ValueError, match="one row each per point"):
         method_of_cubes(
-            _grid_field(np.ones((2, 2, 2))), np.zeros((3, 3)), np.zeros((2, 3)), np.ones((3, 3))
+            grid_field(np.ones((2, 2, 2))), np.zeros((3, 3)), np.zeros((2, 3)), np.ones((3, 3))
         )

@@ -33,14 +33,21 @@ def _banded(rng):
     return _grid(np.arange(0.0, 0.5, 0.005), ys, rng, noise=0.0005)
 
 
-def test_radius_grows_where_the_sampling_is_sparse(rng):
+def _two_densities(rng):
+    """A plane sampled every 10 mm where x < 0.3 and every 25 mm beyond: the points, their
+    neighbours and sector distances, and which lie away from the edges and the seam."""
     dense = _grid(np.arange(0.0, 0.3, 0.01), np.arange(0.0, 0.6, 0.01), rng)
     sparse = _grid(np.arange(0.3, 0.6, 0.025), np.arange(0.0, 0.6, 0.025), rng)
     points = np.concatenate([dense, sparse])
     neighbours = knn(points, 32)
     sectors, _ = sector_distances(points, neighbours.indices, neighbours.distances)
-    radii = point_radii(sectors, neighbours, rho_delta=0.02, margin=0.001)
     inner = (np.abs(points[:, 1] - 0.3) < 0.2) & (np.abs(points[:, 0] - 0.3) > 0.1)
+    return points, neighbours, sectors, inner
+
+
+def test_radius_grows_where_the_sampling_is_sparse(rng):
+    points, neighbours, sectors, inner = _two_densities(rng)
+    radii = point_radii(sectors, neighbours, rho_delta=0.02, margin=0.001)
     assert np.all(radii[inner & (points[:, 0] < 0.3)] == 0.02)
     sparse_radii = radii[inner & (points[:, 0] > 0.3)]
     # Six of eight directions reach a neighbour at the diagonal, 25 sqrt(2) mm.
@@ -51,13 +58,8 @@ def test_radius_grows_where_the_sampling_is_sparse(rng):
 def test_local_spacing_is_not_held_to_the_clouds_radius(rng):
     # The dense half's spacing is its own (10 mm to the diagonal neighbour), below the
     # cloud's rho+delta that floors its radius; the sparse half's is 25 mm's.
-    dense = _grid(np.arange(0.0, 0.3, 0.01), np.arange(0.0, 0.6, 0.01), rng)
-    sparse = _grid(np.arange(0.3, 0.6, 0.025), np.arange(0.0, 0.6, 0.025), rng)
-    points = np.concatenate([dense, sparse])
-    neighbours = knn(points, 32)
-    sectors, _ = sector_distances(points, neighbours.indices, neighbours.distances)
+    points, neighbours, sectors, inner = _two_densities(rng)
     spacing = local_spacing(sectors, neighbours)
-    inner = (np.abs(points[:, 1] - 0.3) < 0.2) & (np.abs(points[:, 0] - 0.3) > 0.1)
     np.testing.assert_allclose(spacing[inner & (points[:, 0] < 0.3)], 0.01 * np.sqrt(2))
     np.testing.assert_allclose(spacing[inner & (points[:, 0] > 0.3)], 0.025 * np.sqrt(2))
     radii = point_radii(sectors, neighbours, rho_delta=0.02, margin=0.001)

@@ -13,17 +13,7 @@ from zeroset.repair import split_nonmanifold_vertices
 from zeroset.synthetic import sample_sphere, sample_torus
 from zeroset.types import DistanceField
 
-
-def _grid_field(values, cube=1.0):
-    """A field on the full (a, b, c) grid of `values`, in key order."""
-    ijk = np.argwhere(np.ones(values.shape, bool))
-    order = np.argsort(_lattice.encode(ijk))
-    return DistanceField(
-        vertices_ijk=ijk[order],
-        values=values.reshape(-1)[order],
-        origin=np.zeros(3),
-        cube_size=cube,
-    )
+from .fields import grid_field, tilted_plane
 
 
 def _shape_counts(mesh):
@@ -60,7 +50,7 @@ def _smooth_field(seed, size, undefined):
     plane = ijk @ rng.normal(size=3) - rng.uniform(0, size)
     values = np.minimum(spheres.min(axis=-1), plane + rng.uniform(size, 3 * size))
     values[rng.random(values.shape) < undefined] = np.nan
-    return _grid_field(values)
+    return grid_field(values)
 
 
 @settings(deadline=None, max_examples=40)
@@ -84,7 +74,7 @@ def test_merged_cells_keep_a_manifold_oriented_crack_free_mesh(
     else:
         values = rng.normal(size=(size,) * 3) * 0.3
         values[rng.random(values.shape) < undefined] = np.nan
-        field = _grid_field(values)
+        field = grid_field(values)
     points = rng.uniform(0.0, size - 1, (300, 3))
     planes = (points, points + [0.0, 0.0, 1e3], np.tile([0.0, 0.0, 1.0], (300, 1)))
     sizes = 2.0 ** rng.uniform(0.0, largest + 1, 300)
@@ -115,13 +105,7 @@ def test_merged_cells_keep_a_manifold_oriented_crack_free_mesh(
 
 def test_a_plane_merges_into_the_largest_cells_away_from_its_boundary():
     # The plane z = 1.3 + 0.1 x through a 34 x 34 x 8 grid, every point allowing 8 cubes.
-    x, y, z = np.meshgrid(np.arange(34.0), np.arange(34.0), np.arange(8.0), indexing="ij")
-    field = _grid_field(z - 1.3 - 0.1 * x)
-    rng = np.random.default_rng(0)
-    points = np.c_[rng.uniform(0, 33, (4000, 2)), np.zeros(4000)]
-    points[:, 2] = 1.3 + 0.1 * points[:, 0]
-    normal = np.array([-0.1, 0.0, 1.0]) / np.hypot(0.1, 1.0)
-    normals = np.tile(normal, (4000, 1))
+    field, points, normals = tilted_plane((34, 34, 8), 1.3)
     single = method_of_cubes(field, points, points, normals)
     mesh, level, counts = adaptive_cubes(field, points, points, normals, sizes=np.full(4000, 8.0))
     _assert_manifold(mesh)
@@ -142,7 +126,7 @@ def test_a_plane_merges_into_the_largest_cells_away_from_its_boundary():
 def test_cells_follow_the_sizes_the_points_allow():
     # Points allow one cube where x < 24 and eight beyond: the cells grow across the plane.
     x, y, z = np.meshgrid(np.arange(73.0), np.arange(49.0), np.arange(4.0), indexing="ij")
-    field = _grid_field(z - 1.5)
+    field = grid_field(z - 1.5)
     rng = np.random.default_rng(1)
     points = np.c_[rng.uniform(0, 72, 20_000), rng.uniform(0, 48, 20_000), np.full(20_000, 1.5)]
     normals = np.tile([0.0, 0.0, 1.0], (20_000, 1))
