@@ -137,7 +137,7 @@ def merge_cells(
     cluster = np.arange(n)
     level = np.zeros(n, dtype=np.int64)
     merged, undone = [], 0
-    for lv in range(1, max_level + 1):
+    for lv in range(1, max_level + 1 if allowed.max(initial=0) > 0 else 1):
         parent = _lattice.encode(cubes >> lv)
         keys, of_vertex = np.unique(parent, return_inverse=True)
         if keys.size == 0:
@@ -147,7 +147,7 @@ def merge_cells(
         ready &= _graded(keys, child_keys, _all(of_child, level >= lv - 1, child_keys.size))
         ready &= _discs(faces, cluster, of_vertex, keys.size) == 1
         several = np.bincount(of_vertex, minlength=keys.size) > 1  # one vertex: nothing moves
-        for _ in range(MAX_ROUNDS):
+        for _ in range(MAX_ROUNDS if (ready & several).any() else 0):
             trial = np.where(ready[of_vertex], n + of_vertex, cluster)
             bad = _broken(mesh, normals, trial, (ready & several)[of_vertex])
             if not bad.any():
@@ -156,7 +156,7 @@ def merge_cells(
             ready[blamed] = False
             undone += blamed.size
         else:
-            ready[:] = False
+            ready &= ~several  # rounds ran out: only the lone vertices move up a level
         cluster = np.where(ready[of_vertex], n + of_vertex, cluster)
         cluster = np.unique(cluster, return_inverse=True)[1]
         level[ready[of_vertex]] = lv
