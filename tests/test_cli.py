@@ -167,7 +167,10 @@ def test_bad_option_value_is_an_argparse_error(sphere_file, tmp_path):
 def test_contour_option_chooses_the_method_of_cubes(sphere_file, tmp_path, capsys):
     out = tmp_path / "mesh.ply"
     assert main(["reconstruct", str(sphere_file), "-o", str(out), "--contour", "cubes"]) == 0
-    assert "mesh        Method of Cubes:" in capsys.readouterr().out
+    printed = capsys.readouterr().out
+    assert "mesh        Method of Cubes:" in printed
+    cells = next(line for line in printed.splitlines() if line.startswith("cells "))
+    assert " of side " in cells and "before the refinement" in cells
     mesh = io.read_mesh(out)
     assert topology.euler_characteristic(mesh) == 2 and topology.is_edge_manifold(mesh.faces)
     with pytest.raises(SystemExit) as exit_info:
