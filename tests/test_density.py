@@ -47,7 +47,7 @@ def _two_densities(rng):
 
 def test_radius_grows_where_the_sampling_is_sparse(rng):
     points, neighbours, sectors, inner = _two_densities(rng)
-    radii = point_radii(sectors, neighbours, rho_delta=0.02, margin=0.001)
+    radii = point_radii(local_spacing(sectors, neighbours), rho_delta=0.02, margin=0.001)
     assert np.all(radii[inner & (points[:, 0] < 0.3)] == 0.02)
     sparse_radii = radii[inner & (points[:, 0] > 0.3)]
     # Six of eight directions reach a neighbour at the diagonal, 25 sqrt(2) mm.
@@ -62,7 +62,7 @@ def test_local_spacing_is_not_held_to_the_clouds_radius(rng):
     spacing = local_spacing(sectors, neighbours)
     np.testing.assert_allclose(spacing[inner & (points[:, 0] < 0.3)], 0.01 * np.sqrt(2))
     np.testing.assert_allclose(spacing[inner & (points[:, 0] > 0.3)], 0.025 * np.sqrt(2))
-    radii = point_radii(sectors, neighbours, rho_delta=0.02, margin=0.001)
+    radii = point_radii(spacing, rho_delta=0.02, margin=0.001)
     np.testing.assert_array_equal(radii[inner], np.maximum(spacing[inner] + 0.001, 0.02))
 
 

@@ -19,6 +19,7 @@ from ._mc_table import (
 )
 from ._validate import as_points, positive_per_row
 from .neighbours import build_tree
+from .octree import mean_by
 from .types import DistanceField, Mesh
 
 __all__ = ["adaptive_cubes", "keyed_marching_cubes", "marching_cubes", "method_of_cubes"]
@@ -159,7 +160,7 @@ def method_of_cubes(field: DistanceField, points, centroids, normals, *, sizes=N
     return adaptive_cubes(field, points, centroids, normals, sizes=sizes)[0]
 
 
-def adaptive_cubes(field: DistanceField, points, centroids, normals, *, sizes=None):
+def adaptive_cubes(field: DistanceField, points, centroids, normals, *, sizes=None, tree=None):
     """`method_of_cubes`, with the level of each vertex's cell and the merges' counts.
 
     Returns
@@ -169,6 +170,8 @@ def adaptive_cubes(field: DistanceField, points, centroids, normals, *, sizes=No
         Each vertex's cell is ``2**level`` cubes a side.
     counts : dict
         ``cells_merged`` (merges kept per level) and ``merges_undone``.
+
+    `tree` is a cKDTree over `points`, to reuse one already built.
     """
     points = as_points(points)
     centroids = as_points(centroids, "centroids")
@@ -183,7 +186,7 @@ def adaptive_cubes(field: DistanceField, points, centroids, normals, *, sizes=No
     mesh, cubes = _dual_mesh(field, points, centroids, normals)
     if sizes is None or mesh.n_faces == 0:
         return mesh, np.zeros(mesh.n_vertices, dtype=np.int64), {}
-    nearest = build_tree(points).query(mesh.vertices, workers=-1)[1]
+    nearest = (build_tree(points) if tree is None else tree).query(mesh.vertices, workers=-1)[1]
     levels = octree.cell_levels(sizes[nearest], field.cube_size)
     return octree.merge_cells(mesh, cubes, levels)
 
@@ -211,7 +214,7 @@ def _dual_mesh(field: DistanceField, points, centroids, normals) -> tuple[Mesh, 
 
     n_vertices = int(per_cube.sum())
     cube_of_vertex = np.repeat(np.arange(cube_keys.size), per_cube)
-    centre = _mean_by(vertex, crossing, n_vertices)
+    centre = mean_by(vertex, crossing, n_vertices)
     gradient = _cube_gradients(values)
     vertices = _place_on_planes(
         centre, cube_keys, cube_of_vertex, per_cube, gradient, field, points, centroids, normals
@@ -271,13 +274,6 @@ def _edge_points(edge_keys: np.ndarray, keys: np.ndarray, field: DistanceField) 
     return field.origin + field.cube_size * ijk
 
 
-def _mean_by(group: np.ndarray, rows: np.ndarray, n_groups: int) -> np.ndarray:
-    """(G, 3) mean of the (K, 3) `rows` in each of `n_groups` groups (zero where empty)."""
-    count = np.bincount(group, minlength=n_groups)
-    total = np.stack([np.bincount(group, rows[:, i], n_groups) for i in range(3)], axis=1)
-    return total / np.maximum(count, 1)[:, None]
-
-
 def _cube_gradients(values: np.ndarray) -> np.ndarray:
     """(C, 3) unit direction of increasing value in each cube, from its (C, 8) corners."""
     bits = CORNER_OFFSETS.astype(np.float64)  # (8, 3)
@@ -305,8 +301,8 @@ def _place_on_planes(
     cube = slot[hit]
     n_cubes = cube_keys.size
     count = np.bincount(cube, minlength=n_cubes)
-    mean = _mean_by(cube, projected[inside][hit], n_cubes)
-    direction = _mean_by(cube, normals[inside][hit], n_cubes)
+    mean = mean_by(cube, projected[inside][hit], n_cubes)
+    direction = mean_by(cube, normals[inside][hit], n_cubes)
     length = np.linalg.norm(direction, axis=1)
     plane_normal = direction / np.maximum(length, 1e-300)[:, None]
     usable = (count > 0) & (per_cube == 1) & (np.einsum("ij,ij->i", plane_normal, gradient) > 0)
@@ -366,7 +362,7 @@ def _triangulate(vertices, quads, reference, meeting, crossing) -> tuple[Mesh, n
         used, first, extra = np.unique(
             inverse.reshape(quads.shape)[q, s], return_index=True, return_inverse=True
         )
-        vertices = np.concatenate([vertices, _mean_by(extra, crossing[q], used.size)])
+        vertices = np.concatenate([vertices, mean_by(extra, crossing[q], used.size)])
         source = np.concatenate([source, quads[q[first], s[first]]])
         inserted = np.full(quads.shape, -1)
         inserted[q, s] = n + extra

@@ -117,27 +117,23 @@ def sector_radius(points, indices, distances, needed: int = SECTORS_NEEDED) -> n
     return np.sort(distance, axis=1)[:, needed - 1]
 
 
-def point_radii(sectors, neighbours, *, rho_delta: float, margin) -> np.ndarray:
+def point_radii(spacing, *, rho_delta: float, margin) -> np.ndarray:
     """Neighbourhood radius (N,) of every point: the spacing around it plus the noise margin.
 
-    The spacing is the radius reaching neighbours in SECTORS_NEEDED of SECTORS directions,
-    smoothed by the median over the point's SMOOTH_K nearest neighbours so that one odd
-    neighbourhood does not stand out. The radius is that spacing plus `margin` (delta), at
-    least `rho_delta`; where it would exceed ``RADIUS_CAP rho_delta`` the point keeps
-    `rho_delta` (it is an outlier or lies at an edge).
+    The radius is the point's spacing (`local_spacing`) plus `margin` (delta), at least
+    `rho_delta`; where it would exceed ``RADIUS_CAP rho_delta`` the point keeps `rho_delta`
+    (it is an outlier or lies at an edge).
 
     Parameters
     ----------
-    sectors : (N, SECTORS) float64
-        Distance to the nearest neighbour in each direction (`sector_distances`).
-    neighbours : Neighbourhoods
-        Nearest neighbours of every point, itself first.
+    spacing : (N,) float64
+        Spacing around each point (`local_spacing`).
     rho_delta : float
         The cloud's radius: the smallest one returned.
     margin : float or (N,) float64
         delta, the noise margin added to the spacing.
     """
-    radii = local_spacing(sectors, neighbours) + margin
+    radii = np.asarray(spacing, dtype=np.float64) + margin
     return np.where(radii <= RADIUS_CAP * rho_delta, np.maximum(radii, rho_delta), rho_delta)
 
 

@@ -29,7 +29,14 @@ import numpy as np
 from . import _lattice
 from .evaluate import smallest_angles
 from .refine import CHORD_NOISE, CHORD_RELATIVE
-from .topology import corner_fans, edge_ids, face_area_vectors, half_edges, vertex_normals
+from .topology import (
+    corner_fans,
+    edge_ids,
+    face_area_vectors,
+    half_edges,
+    undirected_edges,
+    vertex_normals,
+)
 from .types import Mesh
 
 __all__ = [
@@ -37,6 +44,7 @@ __all__ = [
     "MIN_ANGLE",
     "cell_levels",
     "cell_sizes",
+    "mean_by",
     "merge_cells",
 ]
 
@@ -131,17 +139,16 @@ def merge_cells(
     """
     faces = mesh.faces
     n = mesh.n_vertices
-    normals = vertex_normals(mesh)
     allowed = np.asarray(levels, dtype=np.int64).copy()
     allowed[_pinned(faces, cubes, n)] = 0
-    cluster = np.arange(n)
     level = np.zeros(n, dtype=np.int64)
+    if allowed.max(initial=0) == 0:
+        return mesh, level, {"cells_merged": [], "merges_undone": 0}
+    normals = vertex_normals(mesh)
+    cluster = np.arange(n)
     merged, undone = [], 0
-    for lv in range(1, max_level + 1 if allowed.max(initial=0) > 0 else 1):
-        parent = _lattice.encode(cubes >> lv)
-        keys, of_vertex = np.unique(parent, return_inverse=True)
-        if keys.size == 0:
-            break
+    for lv in range(1, max_level + 1):
+        keys, of_vertex = np.unique(_lattice.encode(cubes >> lv), return_inverse=True)
         ready = _all(of_vertex, (allowed >= lv) & (level == lv - 1), keys.size)
         child_keys, of_child = np.unique(_lattice.encode(cubes >> (lv - 1)), return_inverse=True)
         ready &= _graded(keys, child_keys, _all(of_child, level >= lv - 1, child_keys.size))
@@ -203,38 +210,35 @@ def _discs(faces: np.ndarray, cluster: np.ndarray, of_vertex: np.ndarray, n_cell
     cell_of_cluster = np.zeros(cluster.max() + 1, dtype=np.int64)
     cell_of_cluster[cluster] = of_vertex
     labelled = cluster[faces]
-    keep = (labelled[:, 0] != labelled[:, 1]) & (labelled[:, 1] != labelled[:, 2])
-    keep &= labelled[:, 2] != labelled[:, 0]
-    labelled = labelled[keep]
+    labelled = labelled[_proper(labelled)]
     cell = cell_of_cluster[labelled]
-    n_v = np.bincount(cell_of_cluster, minlength=n_cells)
     inside = (cell[:, 0] == cell[:, 1]) & (cell[:, 1] == cell[:, 2])
+    ends = cell_of_cluster[undirected_edges(labelled)[0]]
+    n_v = np.bincount(cell_of_cluster, minlength=n_cells)
+    n_e = np.bincount(ends[ends[:, 0] == ends[:, 1], 0], minlength=n_cells)
     n_f = np.bincount(cell[inside, 0], minlength=n_cells)
-    half = np.sort(half_edges(labelled), axis=1)
-    edges = np.unique(half[:, 0] * np.int64(cluster.max() + 1) + half[:, 1])
-    a, b = (
-        cell_of_cluster[edges // (cluster.max() + 1)],
-        cell_of_cluster[edges % (cluster.max() + 1)],
-    )
-    n_e = np.bincount(a[a == b], minlength=n_cells)
     return n_v - n_e + n_f
+
+
+def _proper(faces: np.ndarray) -> np.ndarray:
+    """(F,) bool: faces with three different vertices."""
+    ordered = np.sort(faces, axis=1)
+    return (ordered[:, 0] != ordered[:, 1]) & (ordered[:, 1] != ordered[:, 2])
+
+
+def mean_by(group: np.ndarray, rows: np.ndarray, n_groups: int) -> np.ndarray:
+    """(G, 3) mean of the (K, 3) `rows` in each of `n_groups` groups (zero where empty)."""
+    count = np.bincount(group, minlength=n_groups)
+    total = np.stack([np.bincount(group, rows[:, i], n_groups) for i in range(3)], axis=1)
+    return total / np.maximum(count, 1)[:, None]
 
 
 def _collapse(mesh: Mesh, cluster: np.ndarray):
     """Vertices (M, 3) at the means of the clusters, faces (F', 3) without collapsed ones,
     and the compact id (V,) of each input vertex."""
     ids, inverse = np.unique(cluster, return_inverse=True)
-    m = ids.size
-    count = np.bincount(inverse, minlength=m)
-    vertices = (
-        np.stack([np.bincount(inverse, mesh.vertices[:, i], m) for i in range(3)], axis=1)
-        / count[:, None]
-    )
     faces = inverse[mesh.faces]
-    keep = (
-        (faces[:, 0] != faces[:, 1]) & (faces[:, 1] != faces[:, 2]) & (faces[:, 2] != faces[:, 0])
-    )
-    return vertices, faces[keep], inverse
+    return mean_by(inverse, mesh.vertices, ids.size), faces[_proper(faces)], inverse
 
 
 def _broken(mesh: Mesh, normals: np.ndarray, trial: np.ndarray, moved: np.ndarray):
@@ -270,8 +274,7 @@ def _broken(mesh: Mesh, normals: np.ndarray, trial: np.ndarray, moved: np.ndarra
     moved_cluster = np.zeros(m, dtype=bool)
     moved_cluster[inverse[moved]] = True
     touched = moved_cluster[faces].any(axis=1)
-    reference = np.zeros((m, 3))
-    np.add.at(reference, inverse, normals)
+    reference = mean_by(inverse, normals, m)
     area = face_area_vectors(vertices, faces)
     ref = reference[faces].sum(axis=1)
     cos_turn = np.einsum("ij,ij->i", area, ref) / np.maximum(

@@ -534,11 +534,10 @@ def measure_radii(cells: Cells, neighbours, parameters: Parameters, config) -> t
     if cells.viewpoints is not None:
         noise, model = range_noise(cells.points, neighbours, cells.viewpoints, noise=noise)
     sectors, _ = sector_distances(cells.points, neighbours.indices, neighbours.distances)
-    radii = point_radii(
-        sectors, neighbours, rho_delta=parameters.rho_delta, margin=config.noise_factor * noise
-    )
+    spacing = local_spacing(sectors, neighbours)
+    radii = point_radii(spacing, rho_delta=parameters.rho_delta, margin=config.noise_factor * noise)
     extent = neighbours.distances[:, [SMOOTH_K - 1, -1]]
-    return Density(radii, sectors, extent, local_spacing(sectors, neighbours), model), {}
+    return Density(radii, sectors, extent, spacing, model), {}
 
 
 def drop_sparse_points(cells: Cells, neighbours, density: Density, parameters: Parameters, config):
@@ -666,7 +665,7 @@ def contour(field_: DistanceField, fitted: FittedPlanes, normals, parameters, co
         return marching_cubes(field_), {}
     sizes = None if fitted.jets is None else point_cell_sizes(fitted, parameters, config)
     mesh, level, counts = adaptive_cubes(
-        field_, fitted.points, fitted.planes.centroids, normals, sizes=sizes
+        field_, fitted.points, fitted.planes.centroids, normals, sizes=sizes, tree=fitted.tree
     )
     counts["cell_sides"] = {
         f"{field_.cube_size * 2**lv:.4g}": int(n) for lv, n in enumerate(np.bincount(level)) if n
