@@ -28,7 +28,7 @@ import numpy as np
 
 from . import _lattice
 from .evaluate import smallest_angles
-from .refine import CHORD_NOISE, CHORD_RELATIVE
+from .refine import sag_tolerance
 from .topology import (
     corner_fans,
     edge_ids,
@@ -82,9 +82,8 @@ def cell_sizes(curvature, spacing, *, noise: float, noise_factor: float, cube_fa
     chooses the cloud's from its sparser points). Where the surface is flat the cell may be
     larger: a cell's flat faces cut the chords of a surface of curvature kappa, sagging by
     ``L^2 kappa / 8`` over a side L, and L may grow while that stays within the tolerance
-    of `zeroset.refine` (``CHORD_RELATIVE / kappa`` or ``CHORD_NOISE * noise``, whichever
-    is larger). Where the surface bends more than the data resolve, `zeroset.refine`
-    splits the edges further.
+    of `zeroset.refine` (`zeroset.refine.sag_tolerance`). Where the surface bends more than
+    the data resolve, `zeroset.refine` splits the edges further.
 
     Parameters
     ----------
@@ -99,7 +98,7 @@ def cell_sizes(curvature, spacing, *, noise: float, noise_factor: float, cube_fa
         rho+delta is spacing + `noise_factor` noise; the cube is `cube_factor` rho+delta.
     """
     kappa = np.maximum(np.asarray(curvature, dtype=np.float64), 1e-150)  # sizes stay finite
-    tolerance = np.maximum(CHORD_RELATIVE / kappa, CHORD_NOISE * noise)
+    tolerance = sag_tolerance(kappa, noise)
     spacing = np.asarray(spacing, dtype=np.float64)
     spacing = np.where(np.isfinite(spacing), spacing, 0.0)  # no neighbours around: an edge
     supported = cube_factor * (spacing + noise_factor * noise)
