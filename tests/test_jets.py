@@ -9,7 +9,7 @@ from zeroset.config import ReconstructionConfig
 from zeroset.evaluate import sample_surface
 from zeroset.jets import evaluate_jets, fit_jets, orient_jets
 from zeroset.parameters import estimate_parameters
-from zeroset.refine import MAX_LEVELS, project_to_surface, sag_tolerance, sagging_edges, split_edges
+from zeroset.refine import project_to_surface, split_edges
 from zeroset.synthetic import sample_cylinder, sample_sphere, sample_torus
 from zeroset.types import Mesh
 
@@ -183,33 +183,6 @@ def test_split_edges_keeps_boundaries_orientation_and_euler_characteristic(rng):
         assert area.min() > 0.0
 
 
-def test_edges_split_across_the_bend_only():
-    # On an exact pipe (axis z, r = 0.25) a chord along the axis does not sag, however long,
-    # and a chord round it sags L^2 / 8r: only the measured sag decides.
-    radius, sample = 0.25, _sample("pipe", 0.25, 5_000, 0.0)
-    result = reconstruct(sample.points, refine_levels=0)
-    jets, noise = result.jets, result.parameters.noise
-    unrefined = Mesh(vertices=result.mesh.vertices - result.offset, faces=result.mesh.faces)
-    mesh = project_to_surface(unrefined, jets)[0]  # as refine_mesh does first
-    marked = sagging_edges(mesh, jets, noise=noise)
-    edges = topology.undirected_edges(mesh.faces)[0]
-    chord = mesh.vertices[edges[:, 1]] - mesh.vertices[edges[:, 0]]
-    length = np.linalg.norm(chord, axis=1)
-    along = np.abs(chord[:, 2]) / length
-    curved_sag = length**2 / (8 * radius)  # what a chord across the axis would sag
-    tolerance = sag_tolerance(np.full(edges.shape[0], 1 / radius), noise)
-    axial = (along > np.cos(np.radians(5))) & (curved_sag > 2 * tolerance)
-    round_ = (along < np.cos(np.radians(85))) & (curved_sag > 2 * tolerance)
-    assert axial.sum() > 50 and round_.sum() > 50
-    assert not marked[axial].any()
-    assert marked[round_].mean() > 0.95
-
-    refined = reconstruct(sample.points)
-    assert 1 <= refined.stats["refine_levels"] <= MAX_LEVELS
-    final = Mesh(vertices=refined.mesh.vertices - refined.offset, faces=refined.mesh.faces)
-    assert not sagging_edges(final, refined.jets, noise=noise).any()
-
-
 def test_given_support_is_used_and_reported():
     points = sample_sphere(4_000, radius=1.0, noise=0.01, rng=1).points
     result = reconstruct(points, fit_support=0.3)
@@ -245,3 +218,4 @@ def test_fit_jets_recovers_a_known_quadric(rng):
 def test_bad_surface_options_are_refused(option, message):
     with pytest.raises(ValueError, match=message):
         ReconstructionConfig(**option)
+

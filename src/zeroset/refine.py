@@ -4,9 +4,9 @@ Marching cubes puts each vertex where the field, interpolated linearly along a l
 edge, changes sign, and its flat triangles cut the chords of a curved surface: a convex
 surface comes out too small by up to L^2 kappa / 8 for edges of length L. Projecting the
 vertices onto the zero set of the blended jets (`zeroset.jets`) removes the first error;
-splitting the edges whose midpoints lie too far from that surface and projecting the new
-vertices removes the second, only where and across which the surface bends. Topology and
-boundaries are kept: a split edge keeps its faces, a boundary edge stays a boundary.
+splitting the edges that sag too far and projecting the new vertices removes the second,
+only where the surface bends. Topology and boundaries are kept: a split
+edge keeps its faces, a boundary edge stays a boundary.
 """
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ from .neighbours import build_tree
 from .topology import face_area_vectors, undirected_edges, undo_turned_faces
 from .types import Jets, Mesh
 
-__all__ = ["project_to_surface", "refine_mesh", "sag_tolerance", "sagging_edges", "split_edges"]
+__all__ = ["project_to_surface", "refine_mesh", "sag_tolerance", "split_edges"]
 
 #: Newton steps per projection.
 PROJECTION_STEPS = 2
@@ -26,7 +26,7 @@ PROJECTION_STEPS = 2
 MAX_LEVELS = 3
 #: Chord sag allowed: this fraction of the radius 1 / kappa, or this fraction of the noise
 #: of one point, whichever is larger.
-CHORD_RELATIVE, CHORD_NOISE = 1e-4, 0.06
+CHORD_RELATIVE, CHORD_NOISE = 1e-4, 0.1
 
 
 def sag_tolerance(curvature, noise: float) -> np.ndarray:
@@ -111,8 +111,9 @@ def split_edges(mesh: Mesh, marked: np.ndarray) -> Mesh:
     pieces += [np.stack(t, axis=1)[one] for t in ((a, ab, c), (ab, b, c))]
     two = count == 2
     # The quad a, ab, bc, c: cut along ab-c or a-bc, whichever is shorter.
-    short = np.linalg.norm(vertices[ab] - vertices[c], axis=1) <= np.linalg.norm(
-        vertices[a] - vertices[bc], axis=1
+    short = (
+        np.linalg.norm(vertices[ab] - vertices[c], axis=1)
+        <= np.linalg.norm(vertices[a] - vertices[bc], axis=1)
     )
     pieces.append(np.stack([ab, b, bc], axis=1)[two])
     pieces += [np.stack(t, axis=1)[two & short] for t in ((a, ab, c), (ab, bc, c))]
@@ -124,37 +125,13 @@ def split_edges(mesh: Mesh, marked: np.ndarray) -> Mesh:
     return Mesh(vertices=vertices, faces=np.concatenate(pieces))
 
 
-def sagging_edges(mesh: Mesh, jets: Jets, *, noise: float, tree=None) -> np.ndarray:
-    """(E,) bool: the edges of `zeroset.topology.undirected_edges` whose chords sag too far.
-
-    The sag is measured: the distance ``|f| / |g|`` of the edge's midpoint from the blend of
-    the `jets`. It is split where it exceeds `sag_tolerance` at the curvature of the jet
-    nearest the midpoint, so an edge along a direction in which the surface does not bend
-    (a pipe's axis) is not split however long it is.
-
-    Parameters
-    ----------
-    mesh : Mesh
-    jets : Jets
-    noise : float
-        Noise level sigma of one point, in data units.
-    tree : scipy.spatial.cKDTree, optional
-        Over ``jets.centres``; built when not given.
-    """
-    edges = undirected_edges(mesh.faces)[0]
-    middles = mesh.vertices[edges].mean(axis=1)
-    values, gradients = evaluate_jets(jets, middles)
-    sag = np.abs(values) / np.maximum(np.linalg.norm(gradients, axis=1), 0.5)
-    _, nearest = (build_tree(jets.centres) if tree is None else tree).query(middles, workers=-1)
-    return sag > sag_tolerance(jets.curvature[nearest], noise)
-
-
 def refine_mesh(mesh: Mesh, jets: Jets, *, noise: float, levels: int | None = None):
     """Project the vertices, then split and project the edges whose chords sag too far.
 
-    An edge is split while its midpoint lies farther from the surface than 0.01 % of the
-    radius ``1 / kappa`` or 6 % of the `noise`, whichever is larger (`sagging_edges`); at
-    most three times.
+    A chord of length L on a surface of curvature kappa sags ``L^2 kappa / 8`` below it.
+    An edge is split while that exceeds 0.01 % of the radius ``1 / kappa`` or 10 % of the
+    `noise`, whichever is larger, with kappa the curvature of the jet nearest the edge's
+    midpoint; at most three times.
 
     Parameters
     ----------
@@ -176,10 +153,15 @@ def refine_mesh(mesh: Mesh, jets: Jets, *, noise: float, levels: int | None = No
     rounds, split = 0, 0
     tree = build_tree(jets.centres)
     for _ in range(MAX_LEVELS if levels is None else levels):
+        edges = undirected_edges(mesh.faces)[0]
         if levels is None:
-            marked = sagging_edges(mesh, jets, noise=noise, tree=tree)
+            ends = mesh.vertices[edges]
+            length = np.linalg.norm(ends[:, 0] - ends[:, 1], axis=1)
+            _, nearest = tree.query(ends.mean(axis=1), workers=-1)
+            kappa = np.maximum(jets.curvature[nearest], 1e-300)
+            marked = length**2 * kappa / 8.0 > sag_tolerance(kappa, noise)
         else:
-            marked = np.ones(undirected_edges(mesh.faces)[0].shape[0], dtype=bool)
+            marked = np.ones(edges.shape[0], dtype=bool)
         if not marked.any():
             break
         mesh, more = project_to_surface(split_edges(mesh, marked), jets)
