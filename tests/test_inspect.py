@@ -19,6 +19,7 @@ from zeroset.inspect import (
     inspect_pipe,
     inspection_summary,
 )
+from zeroset.inspect._centreline import _straight_run
 from zeroset.inspect._defects import _significance
 from zeroset.synthetic import (
     Defect,
@@ -215,6 +216,19 @@ def test_a_tee_reports_its_branch_and_no_defect_at_the_opening():
     assert abs(branch.axial - 0.6) < 0.03  # the branch's axis meets the main one at z = 0.6
     # the branch leaves towards +x, which is 9 o'clock on a pipe running up z
     assert abs(branch.clock - 270.0) < 10.0
+
+
+def test_the_centreline_follows_the_straight_run_of_a_tee(rng):
+    # Axis points of a tee: a run 1.2 m along z, a branch 0.9 m along +x from its middle.
+    # The path into the branch is the longer (1.5 m), but its ends lie 1.08 m apart against
+    # the run's 1.2 m: the run is the pipe, the branch what leaves it.
+    t = rng.uniform(0.0, 1.0, 6_000)
+    run = np.column_stack([np.zeros_like(t), np.zeros_like(t), 1.2 * t])
+    branch = np.column_stack([0.9 * t[:3_000], np.zeros(3_000), np.full(3_000, 0.6)])
+    axis = np.concatenate([run, branch]) + rng.normal(scale=0.005, size=(9_000, 3))
+    path = _straight_run(axis, radius=0.1)
+    assert np.abs(path[:, 0]).max() < 0.05
+    assert np.ptp(path[:, 2]) > 1.1
 
 
 def test_a_mesh_far_from_the_origin_is_inspected_without_its_points():

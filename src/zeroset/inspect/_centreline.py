@@ -2,9 +2,10 @@
 
 Every normal of a pipe's wall points at the axis, so the vertices pushed inward along their
 normals by the radius gather on the centreline. The radius and the side the normals face
-come from the wall's mean curvature; the pushed vertices, ordered along the longest path of
-their spanning tree, give a first centreline; then the sections fitted per station move it
-onto their centres, in rounds until it settles (see docs/inspection.md).
+come from the wall's mean curvature; the pushed vertices, ordered along the path of their
+spanning tree between its two ends farthest apart, give a first centreline; then the
+sections fitted per station move it onto their centres, in rounds until it settles (see
+docs/inspection.md).
 """
 
 from __future__ import annotations
@@ -155,8 +156,8 @@ def fit_pipe(
     Parameters
     ----------
     mesh : Mesh
-        The wall of one pipe run: straight, bent, or with branches (the longest run is
-        fitted; a branch is what lies far outside it).
+        The wall of one pipe run: straight, bent, or with branches (the run whose ends lie
+        farthest apart is fitted; a branch is what lies far outside it).
     points : (N, 3) array_like, optional
         The scan points: when given, the cross-sections are fitted to them rather than to
         the mesh's vertices (a mesh rounds the seam where a branch joins).
@@ -192,7 +193,7 @@ def fit_pipe(
         used, radius = tube, 1.0 / abs(float(np.median(curvature[tube])))
     if used.size > MAX_FIT_VERTICES:
         used = np.sort(rng.choice(used, MAX_FIT_VERTICES, replace=False))
-    path = _longest_path(mesh.vertices[used] + towards_axis * radius * normals[used], radius)
+    path = _straight_run(mesh.vertices[used] + towards_axis * radius * normals[used], radius)
     run = path[-1] - path[0]
     if run[np.argmax(np.abs(run))] < 0:  # run along the largest component's positive way
         path = path[::-1]
@@ -354,8 +355,9 @@ def _radius_and_side(mesh: Mesh, rng: np.random.Generator) -> tuple[float, float
     return 0.5 / abs(curvature), (1.0 if curvature < 0 else -1.0)
 
 
-def _longest_path(centres: np.ndarray, radius: float) -> np.ndarray:
-    """(K, 3) cell means of `centres` along the longest path of their spanning tree."""
+def _straight_run(centres: np.ndarray, radius: float) -> np.ndarray:
+    """(K, 3) cell means of `centres` along their spanning tree, between the two of its ends
+    that lie farthest apart: a tee's straight run rather than a turn into its branch."""
     cell = 0.5 * radius
     key = np.floor(centres / cell).astype(np.int64)
     _, label = np.unique(key, axis=0, return_inverse=True)
@@ -371,10 +373,14 @@ def _longest_path(centres: np.ndarray, radius: float) -> np.ndarray:
         (lengths + 1e-12, (pairs[:, 0], pairs[:, 1])), shape=(len(means),) * 2
     )
     tree = csgraph.minimum_spanning_tree(graph)
-    first = csgraph.dijkstra(tree, directed=False, indices=0)
-    start = int(np.argmax(np.where(np.isfinite(first), first, -1)))
-    reach, before = csgraph.dijkstra(tree, directed=False, indices=start, return_predecessors=True)
-    node = int(np.argmax(np.where(np.isfinite(reach), reach, -1)))
+    _, component = csgraph.connected_components(tree, directed=False)
+    degree = np.diff((tree + tree.T).tocsr().indptr)
+    ends = np.flatnonzero((component == np.argmax(np.bincount(component))) & (degree <= 1))
+    # The two ends farthest apart: the one farthest from the ends' mean, then the one
+    # farthest from it (no all-pairs table: a long pipe's tree has many short twigs).
+    start = int(ends[np.argmax(np.linalg.norm(means[ends] - means[ends].mean(axis=0), axis=1))])
+    node = int(ends[np.argmax(np.linalg.norm(means[ends] - means[start], axis=1))])
+    _, before = csgraph.dijkstra(tree, directed=False, indices=start, return_predecessors=True)
     path = [node]
     while before[node] >= 0:
         node = int(before[node])
