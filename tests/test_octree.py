@@ -8,10 +8,11 @@ from hypothesis import strategies as st
 import zeroset
 from zeroset import _lattice, topology
 from zeroset.contour import adaptive_cubes, method_of_cubes
-from zeroset.octree import MAX_LEVEL, MIN_ANGLE, cell_levels, cell_sizes
+from zeroset.evaluate import smallest_angles
+from zeroset.octree import FLIP_FOLD, MAX_LEVEL, MIN_ANGLE, cell_levels, cell_sizes, flip_edges
 from zeroset.repair import split_nonmanifold_vertices
 from zeroset.synthetic import sample_sphere, sample_torus
-from zeroset.types import DistanceField
+from zeroset.types import DistanceField, Mesh
 
 from .fields import grid_field, tilted_plane
 
@@ -225,3 +226,54 @@ def test_merged_vertices_on_a_sphere_lie_within_the_sag_of_their_cells():
     assert np.all(d >= -(3 * side**2 / 8 + slack))
     assert np.all(d <= slack)
     assert topology.signed_volume(mesh) > 0
+
+
+def _sliver_strip(n=20, height=0.05):
+    """A flat strip of 2n slivers in z = 0: quads of side 1 by `height`, sheared by half a
+    side, each cut along its long diagonal."""
+    x = np.arange(n + 1, dtype=np.float64)
+    bottom = np.column_stack([x, np.zeros_like(x), np.zeros_like(x)])
+    top = np.column_stack([x + 0.5, np.full_like(x, height), np.zeros_like(x)])
+    vertices = np.concatenate([bottom, top])
+    i = np.arange(n)
+    # Quad (i, i + 1, top i + 1, top i), cut from i to top i + 1; counter-clockwise from +z.
+    faces = np.concatenate(
+        [np.column_stack([i, i + 1, n + 2 + i]), np.column_stack([i, n + 2 + i, n + 1 + i])]
+    )
+    return Mesh(vertices=vertices, faces=faces)
+
+
+def test_flips_round_slivers_and_keep_the_mesh_whole():
+    mesh = _sliver_strip()
+    faces = flip_edges(mesh.vertices, mesh.faces, np.ones(mesh.n_faces, dtype=bool))
+    flipped = Mesh(vertices=mesh.vertices, faces=faces)
+    assert not np.array_equal(faces, mesh.faces)
+    assert smallest_angles(flipped).min() > smallest_angles(mesh).min() + 1.0
+    assert topology.is_edge_manifold(faces) and topology.is_consistently_oriented(faces)
+    assert topology.euler_characteristic(flipped) == topology.euler_characteristic(mesh)
+    assert len(topology.boundary_loops(faces)) == 1
+    before = topology.face_area_vectors(mesh.vertices, mesh.faces).sum(axis=0)
+    after = topology.face_area_vectors(flipped.vertices, faces).sum(axis=0)
+    np.testing.assert_allclose(after, before, atol=1e-12)  # same plane, same side, same area
+    assert set(topology.boundary_loops(faces)[0].tolist()) == set(range(mesh.n_vertices))
+
+
+def test_no_flip_across_a_fold_or_outside_the_movable_faces():
+    folded = _sliver_strip()
+    vertices = folded.vertices.copy()
+    # Every other vertex up, the others down, by enough that the two faces on each
+    # diagonal meet at more than the allowed fold.
+    vertices[:, 2] = np.where(np.arange(vertices.shape[0]) % 2 == 0, 0.1, -0.1)
+    normals = topology.face_area_vectors(vertices, folded.faces)
+    n = normals.shape[0] // 2
+    cosine = np.einsum("ij,ij->i", normals[:n], normals[n:]) / (
+        np.linalg.norm(normals[:n], axis=1) * np.linalg.norm(normals[n:], axis=1)
+    )
+    assert np.all(cosine < np.cos(np.radians(FLIP_FOLD)))
+    faces = flip_edges(vertices, folded.faces, np.ones(folded.n_faces, dtype=bool))
+    assert np.array_equal(faces, folded.faces)
+
+    mesh = _sliver_strip()
+    movable = np.zeros(mesh.faces.shape[0], dtype=bool)
+    movable[:10] = True  # the lower triangles of ten quads only: no pair is movable
+    assert np.array_equal(flip_edges(mesh.vertices, mesh.faces, movable), mesh.faces)
