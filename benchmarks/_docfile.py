@@ -25,6 +25,7 @@ SECTIONS = (
     "registered",
     "inspection",
     "peers",
+    "holes",
 )
 
 INTRO = """# Benchmarks
@@ -66,6 +67,9 @@ and keeps the rest (this introduction included):
   trimming, VTK) on synthetic pipes, a sphere and a torus with exact ground truth and on real
   scans (`benchmarks/bench_peers.py`, needs the `bench` extra; Open3D also needs Debian's
   `libusb-1.0-0`).
+- [Holes in real scans](#holes-in-real-scans-beside-poissonrecons): each boundary loop of
+  zeroset's bunny and gargoyle beside the rims of PoissonRecon's trimmed meshes
+  (`benchmarks/bench_holes.py`, needs the `bench` extra).
 """
 
 
