@@ -4,6 +4,7 @@ import warnings
 
 import numpy as np
 import pytest
+from scipy.spatial import cKDTree
 
 from zeroset import (
     InputError,
@@ -262,6 +263,8 @@ def test_wrong_sensor_positions_are_not_trusted():
     for key in ("mesh_components", "boundary_loops", "euler_characteristic"):
         assert wrong.stats[key] == plain.stats[key]
     assert topology.is_consistently_oriented(wrong.mesh.faces)
+    gap, _ = cKDTree(plain.mesh.vertices).query(wrong.mesh.vertices)
+    assert gap.max() < 0.5 * plain.parameters.rho_delta
     # The same surface, however each was split: every vertex of either lies on the other.
     for one, other in ((wrong, plain), (plain, wrong)):
         gap = points_to_mesh_distance(one.mesh.vertices, other.mesh)

@@ -30,6 +30,7 @@ from . import _lattice
 from .evaluate import smallest_angles
 from .refine import sag_tolerance
 from .topology import (
+    boundary_edges,
     corner_fans,
     edge_ids,
     face_area_vectors,
@@ -181,10 +182,8 @@ def merge_cells(
 
 def _pinned(faces: np.ndarray, cubes: np.ndarray, n: int) -> np.ndarray:
     """(V,) bool: vertices on a boundary edge, or sharing their cube with another patch."""
-    edge_of_half, counts = edge_ids(faces, n)
-    half = half_edges(faces)
     pinned = np.zeros(n, dtype=bool)
-    pinned[half[counts[edge_of_half] == 1].reshape(-1)] = True
+    pinned[boundary_edges(faces).reshape(-1)] = True
     keys = _lattice.encode(cubes)
     _, inverse, count = np.unique(keys, return_inverse=True, return_counts=True)
     return pinned | (count[inverse] > 1)
