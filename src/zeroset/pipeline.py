@@ -263,7 +263,7 @@ def stage_names(config: ReconstructionConfig, optimize: bool = False) -> tuple[s
 def fit(cloud: LocalCloud, parameters: Parameters, config, stages: Stages) -> FittedPlanes:
     """Stages "cell means" to "local fits" on the points of `cloud`."""
     local = cloud.local
-    cells = stages.run("cell means", average_in_cells, local, cloud.viewpoints, parameters)
+    cells = stages.run("cell means", average_in_cells, local, cloud.viewpoints, parameters, config)
     neighbours = stages.run("neighbours", find_neighbours, cells.points, config)
     density = stages.run("radii", measure_radii, cells, neighbours, parameters, config)
     cells, neighbours, density = stages.run(
@@ -511,15 +511,23 @@ def choose_parameters(local: np.ndarray, config: ReconstructionConfig, tree=None
     return parameters, {}
 
 
-def average_in_cells(local, viewpoints, parameters: Parameters) -> tuple[Cells, dict]:
+def average_in_cells(local, viewpoints, parameters: Parameters, config) -> tuple[Cells, dict]:
     """Stage "cell means": the points (N, 3) averaged in cubic cells of
     ``parameters.averaging_cell``, or kept as they are when it is 0."""
     if parameters.averaging_cell <= 0.0:
         return Cells(local, np.arange(local.shape[0]), viewpoints), {}
     cell = cell_labels(local, parameters.averaging_cell)
+    means = group_means(local, cell)[0]
+    needed = max(config.k_max, SMOOTH_K)
+    if means.shape[0] < needed:
+        raise ReconstructionError(
+            f"the {local.shape[0]} points fill only {means.shape[0]} averaging cells of "
+            f"{parameters.averaging_cell:.4g}; a neighbourhood needs at least {needed}: the "
+            f"cloud is too small for its spacing (set averaging_cell=0, or a smaller rho_delta)"
+        )
     if viewpoints is not None and viewpoints.ndim == 2:
         viewpoints = group_viewpoints(local, viewpoints, cell)
-    return Cells(group_means(local, cell)[0], cell, viewpoints), {}
+    return Cells(means, cell, viewpoints), {}
 
 
 def find_neighbours(points, config: ReconstructionConfig) -> tuple[Neighbourhoods, dict]:
