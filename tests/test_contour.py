@@ -6,7 +6,15 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from zeroset import _lattice, topology
-from zeroset._mc_table import case_table, patch_table
+from zeroset._mc_table import (
+    CENTRE,
+    EDGE_AXIS,
+    EDGE_CORNER,
+    FACE_CORNERS,
+    JOIN_SHIFT,
+    case_table,
+    patch_table,
+)
 from zeroset.contour import marching_cubes, method_of_cubes
 from zeroset.repair import split_nonmanifold_vertices
 from zeroset.types import DistanceField
@@ -63,15 +71,52 @@ FIELDS = given(
 )
 
 
+def _ambiguous_faces(config: int) -> int:
+    """Bits of the faces of a sign configuration whose signs alternate around them."""
+    bits = 0
+    for face, ring in enumerate(FACE_CORNERS):
+        s = [config >> c & 1 for c in ring]
+        bits |= (s[0] == s[2] != s[1] == s[3]) << face
+    return bits
+
+
 def test_case_table_triangulates_every_sign_change_and_nothing_else():
-    table, counts = case_table()
-    assert counts[0] == 0 and counts[255] == 0
-    assert np.all(counts[1:255] > 0)
-    # Complementary configurations cut the same edges.
-    for config in range(256):
-        edges = set(table[config, : counts[config]].ravel())
-        other = set(table[255 - config, : counts[255 - config]].ravel())
-        assert edges == other
+    table, counts, centre = case_table()
+    config = np.arange(counts.size) & 255
+    assert np.all((counts > 0) == ((config > 0) & (config < 255)))
+    # Every crossed edge is used, and only those; a centre vertex only with its loop.
+    for case in range(counts.size):
+        used = set(table[case, : counts[case]].ravel())
+        crossed = {
+            e
+            for e in range(12)
+            if (case >> EDGE_CORNER[e] & 1) != (case >> (EDGE_CORNER[e] + (1 << EDGE_AXIS[e])) & 1)
+        }
+        assert used - {CENTRE} == crossed
+        assert (CENTRE in used) == centre[case].any()
+
+
+def test_a_case_and_its_complement_cut_the_same_patches():
+    # The complement of a case swaps the signs and joins what the case separates: the
+    # field's negative, under the asymptotic decider. Its patches are the same.
+    patch, counts = patch_table()
+    for case in range(counts.size):
+        config, joined = case & 255, case >> JOIN_SHIFT
+        ambiguous = _ambiguous_faces(config)
+        other = (255 - config) | ((joined ^ ambiguous) & ambiguous) << JOIN_SHIFT
+        groups = {frozenset(np.flatnonzero(patch[case] == p)) for p in range(counts[case])}
+        others = {frozenset(np.flatnonzero(patch[other] == p)) for p in range(counts[other])}
+        assert groups == others
+
+
+def test_joining_a_face_merges_the_patches_it_separated():
+    # Corners 0 and 3 positive: face z = 0 alternates. Separated, each positive corner is
+    # a patch of its own; joined through the face, they are one.
+    _, counts = patch_table()
+    config = 0b1001
+    assert _ambiguous_faces(config) == 1 << 4
+    assert counts[config] == 2
+    assert counts[config | 1 << (JOIN_SHIFT + 4)] == 1
 
 
 def test_sphere_field_gives_closed_outward_genus_zero_mesh():
@@ -88,10 +133,35 @@ def test_sphere_field_gives_closed_outward_genus_zero_mesh():
 def test_any_field_gives_a_valid_edge_manifold_oriented_mesh(seed, size, undefined, cube):
     mesh = marching_cubes(_random_field(seed, size, undefined, cube))
     _assert_valid(mesh)
-    # Every vertex lies on a lattice edge inside the grid.
+    # Every vertex lies inside the grid on a lattice edge, but the centres of loops that
+    # wind through joined faces: one in a cube at most.
     grid = mesh.vertices / cube
     assert np.all((grid >= -1e-9) & (grid <= size - 1 + 1e-9))
-    assert np.all(np.sum(np.abs(grid - np.round(grid)) > 1e-9, axis=1) <= 1)
+    centres = grid[np.sum(np.abs(grid - np.round(grid)) > 1e-9, axis=1) > 1]
+    assert np.unique(np.floor(centres), axis=0).shape[0] == centres.shape[0]
+
+
+def _shape(mesh):
+    return (
+        topology.face_components(mesh.faces, mesh.n_vertices)[0],
+        topology.euler_characteristic(mesh),
+    )
+
+
+@FIELDS
+def test_a_field_and_its_negative_give_the_same_surface(seed, size, undefined, cube):
+    # The sign convention of the normals must not decide the topology: ambiguous faces
+    # are resolved by the values (asymptotic decider), not by which side is positive.
+    field = _random_field(seed, size, undefined, cube)
+    negative = DistanceField(
+        vertices_ijk=field.vertices_ijk, values=-field.values, origin=field.origin, cube_size=cube
+    )
+    for contour in (marching_cubes, lambda f: method_of_cubes(f, *_no_planes())):
+        mesh, other = contour(field), contour(negative)
+        assert _shape(mesh) == _shape(other)
+        np.testing.assert_allclose(
+            np.sort(mesh.vertices, axis=0), np.sort(other.vertices, axis=0), atol=1e-9 * cube
+        )
 
 
 def test_cubes_with_an_undefined_corner_are_skipped():

@@ -2,11 +2,18 @@
 
 Each of the 256 sign configurations is triangulated by tracing the zero set over the
 cube's six faces: on every face the crossings are joined so that each positive corner
-run is cut off (a rule that depends on the face's four values only, so the two cubes
-sharing a face draw the same segments). The segments chain into closed loops, and each
-loop is fanned into triangles. Segments are directed consistently with the face's
-outward orientation, so a shared face contributes opposite half-edges to its two cubes:
-the result is an edge-manifold, consistently oriented mesh with no cracks.
+run is cut off. A face whose signs alternate around it is ambiguous: its two positive
+corners are either cut off one by one, or joined through the face's centre (each negative
+corner cut off instead). Which, is a bit per face (`JOIN_SHIFT`), set by the asymptotic
+decider (Nielson & Hamann 1991, `joined_faces`) from the face's four values only, so the
+two cubes sharing a face draw the same segments, and a field and its negative give the
+same surface. The segments chain into closed loops, and each loop is fanned into
+triangles. Segments are directed consistently with the face's outward orientation, so a
+shared face contributes opposite half-edges to its two cubes: the result is an
+edge-manifold, consistently oriented mesh with no cracks.
+
+A case is ``config | joined << JOIN_SHIFT``: bit ``c`` of ``config`` is set when corner
+``c`` is positive, bit ``f`` of ``joined`` when face ``f`` joins its positive corners.
 
 Each loop is one patch of surface inside the cube; the Method of Cubes puts one vertex on
 each patch (`patch_table`).
@@ -19,11 +26,14 @@ from functools import cache
 import numpy as np
 
 __all__ = [
+    "CENTRE",
     "CORNER_OFFSETS",
     "EDGE_AXIS",
     "EDGE_CORNER",
     "FACE_CORNERS",
+    "JOIN_SHIFT",
     "case_table",
+    "joined_faces",
     "patch_table",
 ]
 
@@ -50,20 +60,24 @@ def _faces() -> list[list[int]]:
     return faces
 
 
-def _segments(config: int) -> list[tuple[int, int]]:
-    """Directed zero-set segments (edge id, edge id) on the faces of one configuration."""
+def _segments(case: int) -> list[tuple[int, int]]:
+    """Directed zero-set segments (edge id, edge id) on the faces of one case."""
     segments = []
-    for ring in _faces():
-        positive = [bool(config >> c & 1) for c in ring]
+    for face, ring in enumerate(_faces()):
+        positive = [bool(case >> c & 1) for c in ring]
+        runs = []  # (enter, leave) crossings of each run of positive corners, around the face
         for k in range(4):
-            # Start of a run of positive corners: walk to its end and join the two crossings.
             if positive[k] and not positive[k - 1]:
                 end = k
                 while positive[(end + 1) % 4]:
                     end = (end + 1) % 4
                 enter = _EDGE_ID[frozenset((ring[k - 1], ring[k]))]
                 leave = _EDGE_ID[frozenset((ring[end], ring[(end + 1) % 4]))]
-                segments.append((leave, enter))
+                runs.append((enter, leave))
+        # Each run's crossings are joined, cutting it off; a joined face's two runs are one,
+        # so each run's leaving crossing is joined to the other's entering one.
+        step = 1 if len(runs) == 2 and case >> (JOIN_SHIFT + face) & 1 else 0
+        segments += [(runs[i][1], runs[(i + step) % len(runs)][0]) for i in range(len(runs))]
     return segments
 
 
@@ -87,44 +101,91 @@ def _shares_face(a: int, b: int) -> bool:
     return any(corners <= set(ring) for ring in _faces())
 
 
-def _fan(loop: list[int]) -> list[tuple[int, int, int]]:
+def _fan(loop: tuple[int, ...]) -> list[tuple[int, int, int]]:
     """Fan a loop into triangles from an apex whose diagonals leave the cube's faces.
 
     A diagonal lying in a face could be drawn by the neighbouring cube as well, which
-    would give one edge four triangles; choosing the apex avoids that.
+    would give one edge four triangles; choosing the apex avoids that. A loop that winds
+    through joined faces may have no such apex; it is fanned from its centre (`CENTRE`).
     """
     n = len(loop)
     for shift in range(n):
         ring = loop[shift:] + loop[:shift]
         if not any(_shares_face(ring[0], ring[i]) for i in range(2, n - 1)):
             return [(ring[0], ring[i], ring[i + 1]) for i in range(1, n - 1)]
-    raise AssertionError(f"no face-free fan for loop {loop}")
+    return [(CENTRE, loop[i], loop[(i + 1) % n]) for i in range(n)]
 
 
 #: (6, 4) int64 corners of cube face ``2 * axis + side`` (the face at ``axis = side``), in
 #: order around the face.
 FACE_CORNERS = np.array(_faces(), dtype=np.int64)
+#: Bit of a case from which its faces' join bits start (above the 8 corner signs).
+JOIN_SHIFT = 8
+#: Edge id standing for the mean of the crossings of the loop fanned from its centre.
+CENTRE = 12
+_CASES = 256 << 6
+
+
+def joined_faces(values: np.ndarray) -> np.ndarray:
+    """Bits (C,) int64 of the faces of each cube (C, 8) that join their positive corners.
+
+    A face joins them where its signs alternate and its bilinear interpolant is positive at
+    its saddle point, ``(v0 v2 - v1 v3) / (v0 + v2 - v1 - v3)`` for values ``v0..v3``
+    around it (the asymptotic decider, Nielson & Hamann 1991).
+    """
+    v = values[:, FACE_CORNERS]  # (C, 6, 4)
+    positive = v > 0.0
+    alternating = (positive[..., 0] == positive[..., 2]) & (positive[..., 1] == positive[..., 3])
+    alternating &= positive[..., 0] != positive[..., 1]
+    saddle = v[..., 0] * v[..., 2] - v[..., 1] * v[..., 3]
+    joined = alternating & (saddle * (v[..., 0] + v[..., 2] - v[..., 1] - v[..., 3]) > 0.0)
+    return (joined << np.arange(6)).sum(axis=1)
+
+
+def _canonical() -> np.ndarray:
+    """(16384,) int64 each case with the join bits of faces that are not ambiguous cleared:
+    the cases that differ only there are one."""
+    signs = (np.arange(256)[:, None, None] >> FACE_CORNERS) & 1  # (256, 6, 4)
+    ambiguous = (signs[..., 0] == signs[..., 2]) & (signs[..., 1] == signs[..., 3])
+    ambiguous &= signs[..., 0] != signs[..., 1]
+    mask = 255 | ((ambiguous << np.arange(6)).sum(axis=1) << JOIN_SHIFT)  # (256,)
+    case = np.arange(_CASES)
+    return case & mask[case & 255]
 
 
 @cache
-def case_table() -> tuple[np.ndarray, np.ndarray]:
-    """Return the triangulation of every sign configuration.
+def _loops_of(case: int) -> tuple[tuple[int, ...], ...]:
+    """The closed loops of edge ids of a case."""
+    return tuple(tuple(loop) for loop in _loops(_segments(case)))
+
+
+@cache
+def case_table() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Return the triangulation of every case (``config | joined << JOIN_SHIFT``).
 
     Returns
     -------
-    triangles : (256, T, 3) int64
-        Cube edge ids of each triangle; rows past ``counts[config]`` are -1.
-    counts : (256,) int64
-        Triangles per configuration. Bit ``c`` of a configuration is set when corner
-        ``c`` has a positive value; triangles face the positive side.
+    triangles : (16384, T, 3) int64
+        Cube edge ids of each triangle, or `CENTRE`; rows past ``counts[case]`` are -1.
+        Triangles face the positive side.
+    counts : (16384,) int64
+        Triangles per case.
+    centre : (16384, 12) bool
+        The edges of the loop fanned from its centre, if any (at most one per case).
     """
-    per_config = [[t for loop in _loops(_segments(c)) for t in _fan(loop)] for c in range(256)]
-    width = max(len(t) for t in per_config)
-    triangles = np.full((256, width, 3), -1, dtype=np.int64)
-    for config, tris in enumerate(per_config):
-        if tris:
-            triangles[config, : len(tris)] = tris
-    return triangles, np.array([len(t) for t in per_config], dtype=np.int64)
+    canonical, case = np.unique(_canonical(), return_inverse=True)
+    triangles = np.full((canonical.size, 16, 3), -1, dtype=np.int64)
+    counts = np.zeros(canonical.size, dtype=np.int64)
+    centre = np.zeros((canonical.size, 12), dtype=bool)
+    for row, loops in enumerate(map(_loops_of, canonical.tolist())):
+        fans = [_fan(loop) for loop in loops]
+        tris = [t for fan in fans for t in fan]
+        triangles[row, : len(tris)] = np.reshape(tris, (-1, 3))
+        counts[row] = len(tris)
+        for loop, fan in zip(loops, fans, strict=True):
+            if fan[0][0] == CENTRE:
+                centre[row, list(loop)] = True
+    return triangles[case, : counts.max()], counts[case], centre[case]
 
 
 @cache
@@ -133,16 +194,17 @@ def patch_table() -> tuple[np.ndarray, np.ndarray]:
 
     Returns
     -------
-    patch : (256, 12) int64
-        Patch (loop of `case_table`) of each cube edge, -1 where the edge is not crossed.
-    counts : (256,) int64
-        Patches per configuration: 0 without a sign change, up to 4.
+    patch : (16384, 12) int64
+        Patch (loop of `case_table`) of each cube edge per case, -1 where the edge is not
+        crossed.
+    counts : (16384,) int64
+        Patches per case: 0 without a sign change, up to 4.
     """
-    patch = np.full((256, 12), -1, dtype=np.int64)
-    counts = np.zeros(256, dtype=np.int64)
-    for config in range(256):
-        loops = _loops(_segments(config))
+    canonical, case = np.unique(_canonical(), return_inverse=True)
+    patch = np.full((canonical.size, 12), -1, dtype=np.int64)
+    counts = np.zeros(canonical.size, dtype=np.int64)
+    for row, loops in enumerate(map(_loops_of, canonical.tolist())):
         for index, loop in enumerate(loops):
-            patch[config, loop] = index
-        counts[config] = len(loops)
-    return patch, counts
+            patch[row, list(loop)] = index
+        counts[row] = len(loops)
+    return patch[case], counts[case]

@@ -10,11 +10,14 @@ import numpy as np
 
 from . import _lattice, octree
 from ._mc_table import (
+    CENTRE,
     CORNER_OFFSETS,
     EDGE_AXIS,
     EDGE_CORNER,
     FACE_CORNERS,
+    JOIN_SHIFT,
     case_table,
+    joined_faces,
     patch_table,
 )
 from ._validate import as_points, positive_per_row
@@ -61,8 +64,10 @@ def marching_cubes(field: DistanceField) -> Mesh:
     Notes
     -----
     Lorensen & Cline 1987, with the case table of :mod:`zeroset._mc_table`, which joins
-    crossings face by face so that neighbouring cubes always agree (no cracks); Hoppe et
-    al. 1992, §3.5 (cubes with undefined corners are skipped).
+    crossings face by face so that neighbouring cubes always agree (no cracks), ambiguous
+    faces by the asymptotic decider (Nielson & Hamann 1991), so that the field and its
+    negative give the same surface; Hoppe et al. 1992, §3.5 (cubes with undefined corners
+    are skipped).
     """
     _, vertices, faces, _ = keyed_marching_cubes(field)
     return Mesh(vertices=vertices, faces=faces)
@@ -81,7 +86,8 @@ def keyed_marching_cubes(field: DistanceField, *, owned=None):
     -------
     edge_keys : (V,) int64
         Sorted global key of the lattice edge each vertex lies on: two pieces of one lattice
-        that share an edge share its key and, from the same corner values, its vertex.
+        that share an edge share its key and, from the same corner values, its vertex. A
+        loop's centre vertex has its cube's key, with axis `CENTRE_AXIS`.
     vertices : (V, 3) float64
     faces : (F, 3) int64
         In the order of their cubes' keys, each cube's triangles in table order.
@@ -89,22 +95,28 @@ def keyed_marching_cubes(field: DistanceField, *, owned=None):
         The key of the cube each face was made in.
     """
     keys = _lattice.encode(field.vertices_ijk)
-    cube_keys, _, config = _crossed_cubes(field, keys)
+    cube_keys, values, config = _crossed_cubes(field, keys)
     if owned is not None:
         ijk = _lattice.decode(cube_keys)
         inside = np.all((ijk >= owned[0]) & (ijk < owned[1]), axis=1)
-        cube_keys, config = cube_keys[inside], config[inside]
-    table, counts = case_table()
-    per_cube = counts[config]
+        cube_keys, config, values = cube_keys[inside], config[inside], values[inside]
+    table, counts, centre = case_table()
+    case = config | (joined_faces(values) << JOIN_SHIFT)
+    per_cube = counts[case]
     cube_of_tri = np.repeat(np.arange(cube_keys.size), per_cube)
     rank = np.arange(cube_of_tri.size) - np.repeat(np.cumsum(per_cube) - per_cube, per_cube)
-    edges = table[config[cube_of_tri], rank]  # (T, 3) cube edge ids
-    lower = (
-        cube_keys[cube_of_tri][:, None] + _lattice.offset_keys(CORNER_OFFSETS)[EDGE_CORNER[edges]]
-    )
-    unique_edges, faces = np.unique(_edge_keys(lower, EDGE_AXIS[edges]), return_inverse=True)
-    vertices = _edge_points(unique_edges, keys, field)
-    return unique_edges, vertices, faces.reshape(-1, 3).astype(np.int64), cube_keys[cube_of_tri]
+    edges = table[case[cube_of_tri], rank]  # (T, 3) cube edge ids, or CENTRE
+    tri_keys = _cube_edge_keys(cube_keys[cube_of_tri][:, None], edges)
+    unique_keys, faces = np.unique(tri_keys, return_inverse=True)
+    vertices = np.empty((unique_keys.size, 3))
+    on_edge = (unique_keys & 3) != CENTRE_AXIS
+    vertices[on_edge] = _edge_points(unique_keys[on_edge], keys, field)
+    # A loop fanned from its centre: the mean of its crossings, keyed by its cube.
+    cube = np.searchsorted(cube_keys, unique_keys[~on_edge] >> 2)
+    row, edge = np.nonzero(centre[case[cube]])
+    crossings = _edge_points(_cube_edge_keys(cube_keys[cube[row]], edge), keys, field)
+    vertices[~on_edge] = mean_by(row, crossings, cube.size)
+    return unique_keys, vertices, faces.reshape(-1, 3).astype(np.int64), cube_keys[cube_of_tri]
 
 
 def method_of_cubes(field: DistanceField, points, centroids, normals, *, sizes=None) -> Mesh:
@@ -200,9 +212,10 @@ def _dual_mesh(field: DistanceField, points, centroids, normals) -> tuple[Mesh, 
             np.zeros((0, 3), dtype=np.int64),
         )
     patch, n_patches = patch_table()
-    per_cube = n_patches[config]
-    cube, edge = np.nonzero(patch[config] >= 0)  # (K,) every crossing, seen from each cube
-    vertex = (np.cumsum(per_cube) - per_cube)[cube] + patch[config[cube], edge]
+    case = config | (joined_faces(values) << JOIN_SHIFT)
+    per_cube = n_patches[case]
+    cube, edge = np.nonzero(patch[case] >= 0)  # (K,) every crossing, seen from each cube
+    vertex = (np.cumsum(per_cube) - per_cube)[cube] + patch[case[cube], edge]
     corner, axis = EDGE_CORNER[edge], EDGE_AXIS[edge]
 
     f0 = values[cube, corner]
@@ -231,7 +244,7 @@ def _dual_mesh(field: DistanceField, points, centroids, normals) -> tuple[Mesh, 
     quads[flip] = quads[flip][:, ::-1]
     reference = gradient[cube_of_vertex][quads].sum(axis=1)
     meeting = _meetings(
-        quads, cube_keys, config, cube_of_vertex, edge_keys[first], lower_positive[first]
+        quads, cube_keys, case, cube_of_vertex, edge_keys[first], lower_positive[first]
     )
     mesh, source = _triangulate(vertices, quads, reference, meeting, crossing[first])
     return mesh, _lattice.decode(cube_keys[cube_of_vertex[source]])
@@ -260,6 +273,19 @@ def _crossed_cubes(
 def _edge_keys(lower_keys: np.ndarray, axis: np.ndarray) -> np.ndarray:
     """Global key of a lattice edge: its lower vertex's key, shifted, with its axis."""
     return (lower_keys << 2) | axis
+
+
+#: The "axis" in the key of a cube's centre vertex (`_cube_edge_keys`): no lattice edge's.
+CENTRE_AXIS = 3
+
+
+def _cube_edge_keys(cube_keys: np.ndarray, edges: np.ndarray) -> np.ndarray:
+    """Global keys of cube edges `edges` (0-11, or `CENTRE` for the cube's centre vertex)
+    of the cubes `cube_keys`, broadcast together."""
+    centre = edges == CENTRE
+    edges = np.where(centre, 0, edges)
+    lower = cube_keys + _lattice.offset_keys(CORNER_OFFSETS)[EDGE_CORNER[edges]]
+    return np.where(centre, _edge_keys(cube_keys, CENTRE_AXIS), _edge_keys(lower, EDGE_AXIS[edges]))
 
 
 def _edge_points(edge_keys: np.ndarray, keys: np.ndarray, field: DistanceField) -> np.ndarray:
@@ -318,24 +344,26 @@ def _place_on_planes(
     return vertices
 
 
-def _meetings(quads, cube_keys, config, cube_of_vertex, edge_keys, lower_positive) -> np.ndarray:
+def _meetings(quads, cube_keys, case, cube_of_vertex, edge_keys, lower_positive) -> np.ndarray:
     """(Q, 4) which segment of its cube face each quad side crosses; -1 if the face has one.
 
     On a face whose signs alternate around it, the face rule cuts each positive corner
-    off on its own, so a segment is named by its positive corner: the positive end of the
-    quad's lattice edge.
+    off on its own, or each negative one where the face joins its positive corners, so a
+    segment is named by the corner it cuts off: that end of the quad's lattice edge.
     """
     ijk = _lattice.decode(cube_keys)
     cube = cube_of_vertex[quads]  # (Q, 4)
     step = ijk[np.roll(cube, -1, axis=1)] - ijk[cube]  # (Q, 4, 3): to the next cube
     axis = np.abs(step).argmax(axis=2)
     face = 2 * axis + (step.max(axis=2) > 0)
-    signs = (config[cube][..., None] >> FACE_CORNERS[face]) & 1  # (Q, 4, 4)
+    signs = (case[cube][..., None] >> FACE_CORNERS[face]) & 1  # (Q, 4, 4)
     alternating = (signs[..., 0] == signs[..., 2]) & (signs[..., 1] == signs[..., 3])
     alternating &= signs[..., 0] != signs[..., 1]
-    upper = _lattice.offset_keys(np.eye(3, dtype=np.int64))[edge_keys & 3]
-    corner = (edge_keys >> 2) + np.where(lower_positive == 1, 0, upper)
-    return np.where(alternating, corner[:, None], -1)
+    joined = (case[cube] >> (JOIN_SHIFT + face)) & 1  # (Q, 4), the same from either cube
+    upper = _lattice.offset_keys(np.eye(3, dtype=np.int64))[edge_keys & 3][:, None]
+    lower_cut = (lower_positive[:, None] == 1) != (joined == 1)  # the cut-off end is lower
+    corner = (edge_keys >> 2)[:, None] + np.where(lower_cut, 0, upper)
+    return np.where(alternating, corner, -1)
 
 
 def _triangulate(vertices, quads, reference, meeting, crossing) -> tuple[Mesh, np.ndarray]:
