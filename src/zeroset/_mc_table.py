@@ -32,6 +32,7 @@ __all__ = [
     "EDGE_CORNER",
     "FACE_CORNERS",
     "JOIN_SHIFT",
+    "alternating",
     "case_table",
     "joined_faces",
     "patch_table",
@@ -126,6 +127,12 @@ CENTRE = 12
 _CASES = 256 << 6
 
 
+def alternating(positive: np.ndarray) -> np.ndarray:
+    """Whether the signs (..., 4) around a face alternate (bool, ...): an ambiguous face."""
+    same = (positive[..., 0] == positive[..., 2]) & (positive[..., 1] == positive[..., 3])
+    return same & (positive[..., 0] != positive[..., 1])
+
+
 def joined_faces(values: np.ndarray) -> np.ndarray:
     """Bits (C,) int64 of the faces of each cube (C, 8) that join their positive corners.
 
@@ -134,20 +141,15 @@ def joined_faces(values: np.ndarray) -> np.ndarray:
     around it (the asymptotic decider, Nielson & Hamann 1991).
     """
     v = values[:, FACE_CORNERS]  # (C, 6, 4)
-    positive = v > 0.0
-    alternating = (positive[..., 0] == positive[..., 2]) & (positive[..., 1] == positive[..., 3])
-    alternating &= positive[..., 0] != positive[..., 1]
     saddle = v[..., 0] * v[..., 2] - v[..., 1] * v[..., 3]
-    joined = alternating & (saddle * (v[..., 0] + v[..., 2] - v[..., 1] - v[..., 3]) > 0.0)
+    joined = alternating(v > 0.0) & (saddle * (v[..., 0] + v[..., 2] - v[..., 1] - v[..., 3]) > 0)
     return (joined << np.arange(6)).sum(axis=1)
 
 
 def _canonical() -> np.ndarray:
     """(16384,) int64 each case with the join bits of faces that are not ambiguous cleared:
     the cases that differ only there are one."""
-    signs = (np.arange(256)[:, None, None] >> FACE_CORNERS) & 1  # (256, 6, 4)
-    ambiguous = (signs[..., 0] == signs[..., 2]) & (signs[..., 1] == signs[..., 3])
-    ambiguous &= signs[..., 0] != signs[..., 1]
+    ambiguous = alternating((np.arange(256)[:, None, None] >> FACE_CORNERS) & 1)  # (256, 6)
     mask = 255 | ((ambiguous << np.arange(6)).sum(axis=1) << JOIN_SHIFT)  # (256,)
     case = np.arange(_CASES)
     return case & mask[case & 255]

@@ -16,6 +16,7 @@ from ._mc_table import (
     EDGE_CORNER,
     FACE_CORNERS,
     JOIN_SHIFT,
+    alternating,
     case_table,
     joined_faces,
     patch_table,
@@ -356,14 +357,12 @@ def _meetings(quads, cube_keys, case, cube_of_vertex, edge_keys, lower_positive)
     step = ijk[np.roll(cube, -1, axis=1)] - ijk[cube]  # (Q, 4, 3): to the next cube
     axis = np.abs(step).argmax(axis=2)
     face = 2 * axis + (step.max(axis=2) > 0)
-    signs = (case[cube][..., None] >> FACE_CORNERS[face]) & 1  # (Q, 4, 4)
-    alternating = (signs[..., 0] == signs[..., 2]) & (signs[..., 1] == signs[..., 3])
-    alternating &= signs[..., 0] != signs[..., 1]
+    ambiguous = alternating((case[cube][..., None] >> FACE_CORNERS[face]) & 1)  # (Q, 4)
     joined = (case[cube] >> (JOIN_SHIFT + face)) & 1  # (Q, 4), the same from either cube
     upper = _lattice.offset_keys(np.eye(3, dtype=np.int64))[edge_keys & 3][:, None]
     lower_cut = (lower_positive[:, None] == 1) != (joined == 1)  # the cut-off end is lower
     corner = (edge_keys >> 2)[:, None] + np.where(lower_cut, 0, upper)
-    return np.where(alternating, corner, -1)
+    return np.where(ambiguous, corner, -1)
 
 
 def _triangulate(vertices, quads, reference, meeting, crossing) -> tuple[Mesh, np.ndarray]:
