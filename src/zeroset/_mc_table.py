@@ -176,18 +176,17 @@ def case_table() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         The edges of the loop fanned from its centre, if any (at most one per case).
     """
     canonical, case = np.unique(_canonical(), return_inverse=True)
-    triangles = np.full((canonical.size, 16, 3), -1, dtype=np.int64)
-    counts = np.zeros(canonical.size, dtype=np.int64)
+    loops = [_loops_of(c) for c in canonical.tolist()]
+    fans = [[_fan(loop) for loop in row] for row in loops]
+    counts = np.array([sum(map(len, row)) for row in fans], dtype=np.int64)
+    triangles = np.full((canonical.size, counts.max(), 3), -1, dtype=np.int64)
     centre = np.zeros((canonical.size, 12), dtype=bool)
-    for row, loops in enumerate(map(_loops_of, canonical.tolist())):
-        fans = [_fan(loop) for loop in loops]
-        tris = [t for fan in fans for t in fan]
-        triangles[row, : len(tris)] = np.reshape(tris, (-1, 3))
-        counts[row] = len(tris)
-        for loop, fan in zip(loops, fans, strict=True):
-            if fan[0][0] == CENTRE:
-                centre[row, list(loop)] = True
-    return triangles[case, : counts.max()], counts[case], centre[case]
+    for row in range(canonical.size):
+        if counts[row]:
+            triangles[row, : counts[row]] = [t for fan in fans[row] for t in fan]
+        for loop, fan in zip(loops[row], fans[row], strict=True):
+            centre[row, list(loop)] |= fan[0][0] == CENTRE
+    return triangles[case], counts[case], centre[case]
 
 
 @cache
