@@ -489,18 +489,12 @@ CASES: list[Case] = [
         _las("scan.las", _SPHERE, lambda d: d[:100] + struct.pack("<I", 10**9) + d[104:]),
         "error: do not fit its",
     ),
-    Case(
-        "laz_data_garbled",
-        _las("scan.laz", _SPHERE, lambda d: d[:-3000] + bytes(3000)),
-        "error: not a valid LAS/LAZ file",
-    ),  # fmt: skip
+    Case("laz_data_garbled", _las("scan.laz", _SPHERE, lambda d: d[:-3000] + bytes(3000)),
+         "error: not a valid LAS/LAZ file"),  # fmt: skip
     Case("las_named_xyz", _las("scan.xyz", _SPHERE), "error: it is a LAS or LAZ file; rename"),
     Case("garbage_las", _garbage("scan.las", 11), "error: not a valid LAS/LAZ file"),
-    Case(
-        "pcd_truncated",
-        _pcd("scan.pcd", _SPHERE, "binary", lambda d: d[:-500]),
-        "error: is truncated",
-    ),  # fmt: skip
+    Case("pcd_truncated", _pcd("scan.pcd", _SPHERE, "binary", lambda d: d[:-500]),
+         "error: is truncated"),  # fmt: skip
     Case(
         "pcd_compressed_claims_1e9_points",
         _pcd("scan.pcd", _SPHERE, "binary_compressed", _replace(b"POINTS 2000", _1E9)),
@@ -517,21 +511,10 @@ CASES: list[Case] = [
     Case("las_georeferenced", _las("scan.las", _SPHERE + [500_000.0, 5_000_000.0, 300.0]), "mesh"),
     Case("pcd_with_nan_rows", _pcd("scan.pcd", _with_bad_rows(np.nan), "ascii"), "mesh"),
     # outputs
-    Case(
-        "output_is_the_input",
-        _ply("scan.ply", _SPHERE),
-        "error: is the input file",
-        "scan.ply",
-        blame="output",
-        api=False,
-    ),  # fmt: skip
-    Case(
-        "output_exists",
-        _and(_GOOD, _text("mesh.ply", "precious\n")),
-        "error: exists; add --force",
-        blame="output",
-        api=False,
-    ),  # fmt: skip
+    Case("output_is_the_input", _ply("scan.ply", _SPHERE), "error: is the input file", "scan.ply",
+         blame="output", api=False),  # fmt: skip
+    Case("output_exists", _and(_GOOD, _text("mesh.ply", "precious\n")),
+         "error: exists; add --force", blame="output", api=False),  # fmt: skip
     Case(
         "output_folder_missing", _GOOD, "error: does not exist", "absent/mesh.ply", blame="output"
     ),
