@@ -9,7 +9,7 @@ from zeroset.config import ReconstructionConfig
 from zeroset.evaluate import sample_surface
 from zeroset.jets import evaluate_jets, fit_jets, orient_jets
 from zeroset.parameters import estimate_parameters
-from zeroset.refine import project_to_surface, split_edges
+from zeroset.refine import MAX_LEVELS, project_to_surface, sagging_edges, split_edges
 from zeroset.synthetic import sample_cylinder, sample_sphere, sample_torus
 from zeroset.types import Mesh
 
@@ -183,6 +183,20 @@ def test_split_edges_keeps_boundaries_orientation_and_euler_characteristic(rng):
         assert area.min() > 0.0
 
 
+def test_refined_edges_sag_no_further_than_the_tolerance():
+    # An exact pipe (r = 0.25): the contoured edges sag L^2 / 8r, more than refine allows,
+    # and after refine none does.
+    sample = _sample("pipe", 0.25, 5_000, 0.0)
+    coarse = reconstruct(sample.points, refine_levels=0)
+    noise = coarse.parameters.noise
+    unrefined = Mesh(vertices=coarse.mesh.vertices - coarse.offset, faces=coarse.mesh.faces)
+    assert sagging_edges(unrefined, coarse.jets, noise=noise).mean() > 0.5
+    refined = reconstruct(sample.points)
+    assert 1 <= refined.stats["refine_levels"] <= MAX_LEVELS
+    final = Mesh(vertices=refined.mesh.vertices - refined.offset, faces=refined.mesh.faces)
+    assert not sagging_edges(final, refined.jets, noise=noise).any()
+
+
 def test_given_support_is_used_and_reported():
     points = sample_sphere(4_000, radius=1.0, noise=0.01, rng=1).points
     result = reconstruct(points, fit_support=0.3)
@@ -218,4 +232,3 @@ def test_fit_jets_recovers_a_known_quadric(rng):
 def test_bad_surface_options_are_refused(option, message):
     with pytest.raises(ValueError, match=message):
         ReconstructionConfig(**option)
-

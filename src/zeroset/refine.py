@@ -18,7 +18,7 @@ from .neighbours import build_tree
 from .topology import face_area_vectors, undirected_edges, undo_turned_faces
 from .types import Jets, Mesh
 
-__all__ = ["project_to_surface", "refine_mesh", "sag_tolerance", "split_edges"]
+__all__ = ["project_to_surface", "refine_mesh", "sag_tolerance", "sagging_edges", "split_edges"]
 
 #: Newton steps per projection.
 PROJECTION_STEPS = 2
@@ -111,9 +111,8 @@ def split_edges(mesh: Mesh, marked: np.ndarray) -> Mesh:
     pieces += [np.stack(t, axis=1)[one] for t in ((a, ab, c), (ab, b, c))]
     two = count == 2
     # The quad a, ab, bc, c: cut along ab-c or a-bc, whichever is shorter.
-    short = (
-        np.linalg.norm(vertices[ab] - vertices[c], axis=1)
-        <= np.linalg.norm(vertices[a] - vertices[bc], axis=1)
+    short = np.linalg.norm(vertices[ab] - vertices[c], axis=1) <= np.linalg.norm(
+        vertices[a] - vertices[bc], axis=1
     )
     pieces.append(np.stack([ab, b, bc], axis=1)[two])
     pieces += [np.stack(t, axis=1)[two & short] for t in ((a, ab, c), (ab, bc, c))]
@@ -125,13 +124,37 @@ def split_edges(mesh: Mesh, marked: np.ndarray) -> Mesh:
     return Mesh(vertices=vertices, faces=np.concatenate(pieces))
 
 
+def sagging_edges(mesh: Mesh, jets: Jets, *, noise: float, tree=None) -> np.ndarray:
+    """(E,) bool: the edges of `zeroset.topology.undirected_edges` whose chords sag too far.
+
+    A chord of length L sags ``L^2 kappa / 8``, with kappa the curvature of the jet nearest
+    its midpoint; it sags too far beyond `sag_tolerance`.
+
+    Parameters
+    ----------
+    mesh : Mesh
+    jets : Jets
+    noise : float
+        Noise level sigma of one point, in data units.
+    tree : scipy.spatial.cKDTree, optional
+        Over ``jets.centres``; built when not given.
+    """
+    ends = mesh.vertices[undirected_edges(mesh.faces)[0]]
+    length = np.linalg.norm(ends[:, 0] - ends[:, 1], axis=1)
+    _, nearest = (build_tree(jets.centres) if tree is None else tree).query(
+        ends.mean(axis=1), workers=-1
+    )
+    kappa = np.maximum(jets.curvature[nearest], 1e-300)
+    return length**2 * kappa / 8.0 > sag_tolerance(kappa, noise)
+
+
 def refine_mesh(mesh: Mesh, jets: Jets, *, noise: float, levels: int | None = None):
     """Project the vertices, then split and project the edges whose chords sag too far.
 
     A chord of length L on a surface of curvature kappa sags ``L^2 kappa / 8`` below it.
     An edge is split while that exceeds 0.01 % of the radius ``1 / kappa`` or 10 % of the
     `noise`, whichever is larger, with kappa the curvature of the jet nearest the edge's
-    midpoint; at most three times.
+    midpoint (`sagging_edges`); at most three times.
 
     Parameters
     ----------
@@ -153,15 +176,10 @@ def refine_mesh(mesh: Mesh, jets: Jets, *, noise: float, levels: int | None = No
     rounds, split = 0, 0
     tree = build_tree(jets.centres)
     for _ in range(MAX_LEVELS if levels is None else levels):
-        edges = undirected_edges(mesh.faces)[0]
         if levels is None:
-            ends = mesh.vertices[edges]
-            length = np.linalg.norm(ends[:, 0] - ends[:, 1], axis=1)
-            _, nearest = tree.query(ends.mean(axis=1), workers=-1)
-            kappa = np.maximum(jets.curvature[nearest], 1e-300)
-            marked = length**2 * kappa / 8.0 > sag_tolerance(kappa, noise)
+            marked = sagging_edges(mesh, jets, noise=noise, tree=tree)
         else:
-            marked = np.ones(edges.shape[0], dtype=bool)
+            marked = np.ones(undirected_edges(mesh.faces)[0].shape[0], dtype=bool)
         if not marked.any():
             break
         mesh, more = project_to_surface(split_edges(mesh, marked), jets)
