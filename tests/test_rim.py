@@ -185,6 +185,32 @@ def test_empty_balls_fill_a_round_hole_and_nothing_else(gap):
     np.testing.assert_allclose(nearest, radii)  # each reaches to its nearest point
 
 
+def test_empty_balls_beside_a_narrow_strip_are_no_holes():
+    # The mesh (z = 0) lies 0.2 in front of a wall (z = -0.2), and a strip 0.1 wide (a post
+    # in the plane y = 0.62) stands across it. The wall's points surround every ball in the
+    # mesh's plane; the post's points surround a ball in the post's plane only when the
+    # ball lies in front of the post, not beside it.
+    mesh = _plane_mesh(20)
+    wall = _grid(101, 0.01) + [0.0, 0.0, -0.2]
+    x, z = np.meshgrid(np.arange(64, 75) * 0.01, np.arange(-50, 51) * 0.01)
+    post = np.stack([x.ravel(), np.full(x.size, 0.62), z.ravel()], axis=1)
+    points = np.concatenate([wall, post])
+    planes = np.concatenate(
+        [np.tile([0.0, 0.0, 1.0], (len(wall), 1)), np.tile([0.0, 1.0, 0.0], (len(post), 1))]
+    )
+    normals = np.tile([0.0, 0.0, 1.0], (mesh.n_vertices, 1))
+    tree, least = cKDTree(points), np.full(len(points), 0.15)
+    beside = {}
+    for name, kept in (("mesh plane", None), ("both planes", planes)):
+        centres, _ = empty_balls(mesh, normals, tree, least, planes=kept)
+        on_post = tree.query(centres)[1] >= len(wall)
+        assert np.count_nonzero(~on_post) > 0  # the mesh off the wall is no data either way
+        x = centres[on_post, 0]
+        beside[name] = np.count_nonzero((x < 0.64 - 0.01) | (x > 0.74 + 0.01))
+    assert beside["mesh plane"] > 0
+    assert beside["both planes"] == 0
+
+
 def test_rim_of_whole_cubes_is_hoppes_and_is_not_cut():
     n, noise = 20_000, 0.002
     sample = sample_cylinder(n, radius=0.25, length=1.0, noise=noise, rng=1)

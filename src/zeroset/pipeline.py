@@ -418,12 +418,15 @@ class DataSupport:
         How far the surface reaches from it.
     measured : (P,) bool
         Whether it was measured, not bridged.
+    planes : (P, 3) float64
+        The unit normal of its tangent plane; zero for a bridge point.
     """
 
     points: np.ndarray
     radii: np.ndarray
     reach: np.ndarray
     measured: np.ndarray
+    planes: np.ndarray
 
     @cached_property
     def measured_tree(self) -> cKDTree:
@@ -432,9 +435,7 @@ class DataSupport:
 
     def select(self, rows) -> DataSupport:
         """The support of `rows` (a mask or indices) only."""
-        return DataSupport(
-            self.points[rows], self.radii[rows], self.reach[rows], self.measured[rows]
-        )
+        return DataSupport(*(getattr(self, f.name)[rows] for f in fields(DataSupport)))
 
     @staticmethod
     def concatenate(parts) -> DataSupport:
@@ -704,6 +705,7 @@ def data_support(fitted: FittedPlanes, bridges: np.ndarray, parameters: Paramete
         radii=np.r_[fitted.density.radii, np.full(n_bridges, BRIDGE_REACH * parameters.rho_delta)],
         reach=np.r_[fitted.density.radii, np.full(n_bridges, BRIDGE_STEP * parameters.rho_delta)],
         measured=np.r_[np.ones(fitted.points.shape[0], bool), np.zeros(n_bridges, bool)],
+        planes=np.concatenate([fitted.planes.normals, np.zeros((n_bridges, 3))]),
     )
 
 
@@ -741,6 +743,7 @@ def trim_rim(mesh: Mesh, support: DataSupport, parameters: Parameters, config):
         measured=support.measured,
         hole=HOLE_BALL,
         measured_tree=support.measured_tree,
+        planes=support.planes,
     )
     # Where the cut's own line pinches two stretches of rim into one vertex, split it.
     mesh, counts["bowtie_vertices_split"] = split_nonmanifold_vertices(mesh)

@@ -17,7 +17,9 @@ than the gaps the bridges may cross has room for an empty ball (one with no meas
 inside) of half the longest bridge, and every vertex within such a ball is outside: the
 union of these balls reaches the hole's last points, whatever its shape (an alpha shape,
 Edelsbrunner & Mücke 1994), and chords that cross the hole off its centre are cut away
-with it.
+with it. The points must surround such a ball both in the mesh's plane and in the tangent
+plane of the point it reaches to, so that a ball beside a narrow object, which the points of
+a wall behind it seem to surround, opens no hole.
 """
 
 from __future__ import annotations
@@ -132,7 +134,7 @@ def data_edge(
     return np.where(counts >= MIN_POINTS, value, 1.0)
 
 
-def empty_balls(mesh: Mesh, normals, tree, least) -> tuple[np.ndarray, np.ndarray]:
+def empty_balls(mesh: Mesh, normals, tree, least, *, planes=None) -> tuple[np.ndarray, np.ndarray]:
     """Centres (C, 3) and radii (C,) of the balls centred on `mesh` that hold no point of
     `tree` (a k-d tree over the points), each reaching to its nearest point and at least
     as large as that point's `least` (N,), data units.
@@ -144,7 +146,12 @@ def empty_balls(mesh: Mesh, normals, tree, least) -> tuple[np.ndarray, np.ndarra
     in all. A centre inside a round hole so reaches the hole's middle, whose ball reaches
     all round to its last points, however coarse the mesh there. Only the balls that the
     points surround are kept (`_enclosed`): the rim test already places open ends, and the
-    space between two sparse scan lines is no hole."""
+    space between two sparse scan lines is no hole. With `planes` (N, 3), the unit normals
+    of the points' tangent planes (any sign), the points must surround a ball in the plane
+    of its nearest point too: beside an object narrower than a cube (a post in front of a
+    wall), the lattice's surface reaches past the data at a slant, and in that surface's
+    plane the points of the object and of the wall behind seem to surround a ball that lies
+    beside the object, in no hole of it."""
     least = np.asarray(least, dtype=np.float64)
     gap, nearest = tree.query(mesh.vertices, workers=-1)
     start = np.flatnonzero(gap >= (1.0 - CLIMB) * least[nearest])
@@ -167,8 +174,12 @@ def empty_balls(mesh: Mesh, normals, tree, least) -> tuple[np.ndarray, np.ndarra
     centres = np.concatenate([mesh.vertices, centre])
     radii = np.concatenate([gap, depth])
     normal = np.concatenate([normals, normal])
-    empty = np.flatnonzero(radii >= least[np.concatenate([nearest, near])])
+    nearest = np.concatenate([nearest, near])
+    empty = np.flatnonzero(radii >= least[nearest])
     enclosed = _enclosed(centres[empty], radii[empty], normal[empty], tree)
+    if planes is not None:
+        plane = planes[nearest[empty]]
+        enclosed &= _enclosed(centres[empty], radii[empty], plane, tree)
     return centres[empty[enclosed]], radii[empty[enclosed]]
 
 
@@ -352,6 +363,7 @@ def trim_to_data(
     measured=None,
     hole=None,
     measured_tree=None,
+    planes=None,
 ) -> tuple[Mesh, dict]:
     """Cut the mesh back to the edge of the data around its boundaries.
 
@@ -381,6 +393,9 @@ def trim_to_data(
         it reaches to; none by default.
     measured_tree : cKDTree, optional
         A tree over the `measured` points, to reuse one already built.
+    planes : (N, 3) float64, optional
+        Unit normal of each point's tangent plane, any sign: an empty ball is a hole only
+        where the points surround it in its nearest point's plane too (`empty_balls`).
 
     Returns
     -------
@@ -404,7 +419,13 @@ def trim_to_data(
         solid = np.ones(points.shape[0], bool) if measured is None else measured
         solid_tree = tree if solid.all() else measured_tree
         solid_tree = build_tree(points[solid]) if solid_tree is None else solid_tree
-        centres, depths = empty_balls(mesh, normals, solid_tree, hole * radii[solid])
+        centres, depths = empty_balls(
+            mesh,
+            normals,
+            solid_tree,
+            hole * radii[solid],
+            planes=None if planes is None else planes[solid],
+        )
     balls, hollow = None, np.zeros(0, dtype=np.int64)
     if centres.shape[0]:
         balls = build_tree(centres)

@@ -698,7 +698,9 @@ def _contour_tile(
         "vertices": np.zeros((0, 3)),
         "faces": np.zeros((0, 3), dtype=np.int64),
         "cube_keys": np.zeros(0, dtype=np.int64),
-        "support": DataSupport(np.zeros((0, 3)), np.zeros(0), np.zeros(0), np.zeros(0, bool)),
+        "support": DataSupport(
+            np.zeros((0, 3)), np.zeros(0), np.zeros(0), np.zeros(0, bool), np.zeros((0, 3))
+        ),
         "counts": {},
         "peak_mib": peak,
         "worker": worker,
