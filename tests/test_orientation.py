@@ -35,6 +35,37 @@ def test_each_component_is_seeded_on_its_own(rng):
     assert np.all(np.einsum("ij,ij->i", result.normals, planes.centroids - centre) > 0)
 
 
+def _arc_sheet(centre, degrees, step=0.02):
+    """Points (M, 3) and outward unit normals (M, 3) on an arc of radius 1 about `centre`
+    (x, y) over `degrees` (from, to), extruded over z in [0, 1], about `step` apart."""
+    theta = np.radians(np.arange(*degrees, np.sign(degrees[1] - degrees[0]) * np.degrees(step)))
+    z = np.arange(0.0, 1.0 + step / 2, step)
+    theta, z = np.meshgrid(theta, z, indexing="ij")
+    out = np.stack([np.cos(theta), np.sin(theta), np.zeros_like(z)], axis=-1).reshape(-1, 3)
+    points = out + np.array([*centre, 0.0])
+    points[:, 2] = z.ravel()
+    return points, out
+
+
+def test_pieces_of_one_surface_are_joined_whichever_is_largest(rng):
+    # An S-shaped sheet in two pieces 0.21 apart (more than the graph's longest edge, 0.15,
+    # within the joining reach, 0.3): one arc bulges towards +x, the other towards -x, so
+    # each piece's own root turns it outward from its own arc and the two disagree. A plane
+    # far away is the largest component; the pieces must still be joined to each other.
+    first, first_out = _arc_sheet((0.0, 0.0), (-60.0, -5.0))
+    second, second_out = _arc_sheet((2.0, 0.0), (175.0, 120.0))
+    far = np.stack(np.meshgrid(np.arange(100) * 0.02, np.arange(100) * 0.02), -1).reshape(-1, 2)
+    far = np.c_[far + 10.0, np.zeros(len(far))]
+    points = np.concatenate([first, second, far])
+    # One consistent side of the S: outward from the first arc, inward to the second.
+    truth = np.concatenate([first_out, -second_out, np.tile([0.0, 0.0, 1.0], (len(far), 1))])
+    result = orient_normals(points, _random_signs(truth, rng), k=8, max_edge=0.15)
+    sheet = slice(0, len(first) + len(second))
+    assert result.n_components == 2
+    agree = np.einsum("ij,ij->i", result.normals[sheet], truth[sheet]) > 0
+    assert agree.all() or not agree.any()
+
+
 def test_flipped_records_which_normals_changed(rng):
     points = sample_sphere(1000, rng=3).points
     planes = tangent_planes(points, radius=0.3)

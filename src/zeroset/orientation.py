@@ -30,7 +30,7 @@ UNTRUSTED = 0.05
 ABRUPT = 0.1
 #: Mean |cosine| from which a component's own sensors decide its sign in the vote.
 DECISIVE = 0.3
-#: A component is joined to the largest only by a pair of points whose step lies within 60
+#: A component is joined to a larger one only by a pair of points whose step lies within 60
 #: degrees of both their tangent planes: |cosine| to each normal at most this (`_bridges`).
 ON_ONE_SURFACE = 0.5
 #: Without viewpoints, components whose points come within this many of their max_edge of
@@ -85,9 +85,9 @@ def orient_normals(
         Graph neighbours per centroid, itself included.
     max_edge : float or (N,) array_like of float, optional
         Longest graph edge, one for all points or one per point (an edge from i is kept if
-        no longer than ``max_edge[i]``). A component left apart is joined to the largest one
-        by its closest pair of points if they lie within twice the max_edge of its point
-        there; farther ones stay separate components.
+        no longer than ``max_edge[i]``). A component left apart is joined to a larger one
+        (`_bridges`) by its closest pair of points if they lie within twice the max_edge of
+        its point there; farther ones stay separate components.
     neighbours : Neighbourhoods, optional
         Precomputed neighbours to use for the graph (those of the data points serve as
         well as the centroids', thesis §3.2.8).
@@ -306,34 +306,45 @@ def _anchored_signs(tree, normals, cosine, anchored, component, signs) -> np.nda
 
 
 def _bridges(centroids, normals, component, reach) -> sparse.csr_matrix:
-    """Edges (N, N) joining each smaller component to the largest, where within `reach`.
+    """Edges (N, N) joining each component to a larger one, where within `reach`.
 
     Sparse parts of a scan (far down a pipe) fall apart into small components that belong
-    to the surface next to them; each is joined by its closest pair of points, as Hoppe's
-    Euclidean minimum spanning tree would join it, if that pair lies on one surface: the
-    step between them within 60 degrees of both tangent planes (|cos| to each normal at
-    most `ON_ONE_SURFACE`). Separate objects stay apart, and so do two sheets facing each
-    other across a gap (two plates, two pipes one inside the other).
+    to the surface next to them, and a wall seen through sparse scan lines into pieces; each
+    is joined by its closest pair of points to one of the ``STACK_COMPONENTS`` largest
+    components larger than itself, as Hoppe's Euclidean minimum spanning tree would join
+    it, if that pair lies on one surface: the step between them within 60 degrees of both
+    tangent planes (|cos| to each normal at most `ON_ONE_SURFACE`). Separate objects stay
+    apart, and so do two sheets facing each other across a gap (two plates, two pipes one
+    inside the other).
     """
     n = centroids.shape[0]
-    largest = np.argmax(np.bincount(component))
-    main = np.flatnonzero(component == largest)
-    others = np.flatnonzero(component != largest)
-    distance, nearest = build_tree(centroids[main]).query(
-        centroids[others], distance_upper_bound=float(reach[others].max()), workers=-1
-    )
-    found = distance <= reach[others]
-    partner = main[np.where(found, nearest, 0)]
-    cos_a, cos_b = step_cosines(
-        centroids[partner] - centroids[others], normals[others], normals[partner]
-    )
-    found &= (np.abs(cos_a) <= ON_ONE_SURFACE) & (np.abs(cos_b) <= ON_ONE_SURFACE)
+    sizes = np.bincount(component)
+    rank = np.empty(sizes.size, dtype=np.int64)
+    rank[np.argsort(-sizes, kind="stable")] = np.arange(sizes.size)
+    # Each point's closest partner on one surface in a larger component, and its distance.
+    partner, gap = np.full(n, -1), np.full(n, np.inf)
+    for target in np.argsort(-sizes, kind="stable")[:STACK_COMPONENTS]:
+        own = np.flatnonzero(component == target)
+        others = np.flatnonzero(rank[component] > rank[target])
+        if others.size == 0:
+            break
+        distance, nearest = build_tree(centroids[own]).query(
+            centroids[others], distance_upper_bound=float(reach[others].max()), workers=-1
+        )
+        found = (distance <= reach[others]) & (distance < gap[others])
+        mate = own[np.where(found, nearest, 0)]
+        cos_a, cos_b = step_cosines(
+            centroids[mate] - centroids[others], normals[others], normals[mate]
+        )
+        found &= (np.abs(cos_a) <= ON_ONE_SURFACE) & (np.abs(cos_b) <= ON_ONE_SURFACE)
+        partner[others[found]], gap[others[found]] = mate[found], distance[found]
     # The closest pair of each component.
-    order = np.lexsort((distance[found], component[others[found]]))
+    joined = np.flatnonzero(partner >= 0)
+    order = joined[np.lexsort((gap[joined], component[joined]))]
     first = np.ones(order.size, dtype=bool)
-    first[1:] = component[others[found]][order][1:] != component[others[found]][order][:-1]
-    rows = others[found][order][first]
-    cols = main[nearest[found][order][first]]
+    first[1:] = component[order][1:] != component[order][:-1]
+    rows = order[first]
+    cols = partner[rows]
     cost = 1.0 - np.abs(np.einsum("ij,ij->i", normals[rows], normals[cols])) + 1e-9
     return sparse.coo_matrix((cost, (rows, cols)), shape=(n, n)).tocsr()
 
