@@ -149,6 +149,60 @@ def test_hole_in_a_pipe_wall_stays_round_and_near_its_edge():
     assert gap.max() <= 2.5 * spacing
 
 
+def _post_and_wall(seed: int, width: float = 0.12, spacing: float = 0.03, noise: float = 0.003):
+    """Points on a wall (x = 0, 2 m square) and on a post `width` wide 0.4 m in front of it
+    (x = -0.4, |y| <= width / 2, 2 m tall), about `spacing` apart with `noise` across, the
+    post's shadow (|y| < width) cut out of the wall."""
+    rng = np.random.default_rng(seed)
+
+    def sheet(x, half, z_top):
+        n = int(2 * half * z_top / spacing**2)
+        points = np.stack([np.full(n, x), rng.uniform(-half, half, n), rng.uniform(0, z_top, n)], 1)
+        points[:, 0] += rng.normal(0.0, noise, n)
+        return points
+
+    wall = sheet(0.0, 1.0, 2.0)
+    return np.concatenate([wall[np.abs(wall[:, 1]) > width], sheet(-0.4, width / 2, 2.0)])
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+@pytest.mark.parametrize("sensor", [False, True])
+def test_narrow_post_in_front_of_a_wall_stays_whole(seed, sensor):
+    # The post is 0.12 m wide, 1.4 rho+delta and under a cube (0.13 m): one column of
+    # vertices tests inside, and balls between post and wall (4.6 rho+delta apart) see the
+    # post's points and the wall's around them. It comes out one piece, its whole height,
+    # within a spacing of its edges, on its plane, and joined to nothing.
+    spacing, noise = 0.03, 0.003
+    points = _post_and_wall(seed, spacing=spacing, noise=noise)
+    viewpoints = np.tile([-3.0, 0.0, 1.0], (len(points), 1)) if sensor else None
+    mesh = reconstruct(points, viewpoints=viewpoints).mesh
+    _, label = topology.face_components(mesh.faces, mesh.n_vertices)
+    centre = mesh.vertices[mesh.faces].mean(axis=1)
+    assert not np.any((centre[:, 0] > -0.3) & (centre[:, 0] < -0.1))  # nothing between
+    on_post = centre[:, 0] < -0.2
+    assert np.unique(label[on_post]).size == 1
+    post = mesh.vertices[np.unique(mesh.faces[on_post])]
+    assert post[:, 2].min() <= 2.5 * spacing and post[:, 2].max() >= 2.0 - 2.5 * spacing
+    assert np.abs(post[:, 1]).max() <= 0.06 + spacing
+    off = post[:, 0] + 0.4
+    assert abs(off.mean()) <= noise and np.abs(off).mean() <= 2 * noise
+    assert np.abs(off).max() <= 0.02
+
+
+def test_cut_keeps_a_strip_one_edge_wide():
+    # Only the column of vertices at x = 0.5 is inside, 0.015 from the cut on either side:
+    # each end of its edges lies within SNAP of a crossing, and moving them all onto the
+    # cut would leave the strip no area. It stays whole, from y = 0 to 1, 0.03 wide.
+    mesh = _plane_mesh(10)
+    cut, _ = cut_mesh(mesh, np.abs(mesh.vertices[:, 0] - 0.5) - 0.015)
+    assert topology.face_components(cut.faces, cut.n_vertices)[0] == 1
+    assert cut.vertices[:, 1].min() == 0.0 and cut.vertices[:, 1].max() == 1.0
+    np.testing.assert_allclose(np.abs(cut.vertices[:, 0] - 0.5).max(), 0.015)
+    area = 0.5 * np.linalg.norm(topology.face_area_vectors(cut.vertices, cut.faces), axis=1)
+    assert area.sum() == pytest.approx(0.03, rel=1e-9)
+    assert topology.is_edge_manifold(cut.faces)
+
+
 def test_cut_does_not_pinch_two_pieces_into_one_vertex():
     # A saddle, turned: the data lie in two opposite quadrants that meet at the centre.
     # Moving the vertex next to the centre onto both cuts would join the two at it.

@@ -253,9 +253,10 @@ def cut_mesh(mesh: Mesh, value: np.ndarray, *, locate=None) -> tuple[Mesh, int]:
     puts the crossing. Where that lies within ``SNAP`` of the edge's length from one end,
     the end moves onto the crossing instead (as isosurface stuffing warps its lattice,
     Labelle & Shewchuk 2007), so no sliver is made, unless the move would turn a triangle
-    over or pinch two stretches of rim into one vertex. Every other crossed edge gets one
-    new vertex, shared by the faces on both sides. Orientation is kept, and faces wholly
-    outside go.
+    over, pinch two stretches of rim into one vertex, or leave a strip one edge wide (an
+    inside edge whose faces all have their third corner outside) no area. Every other
+    crossed edge gets one new vertex, shared by the faces on both sides. Orientation is
+    kept, and faces wholly outside go.
 
     Parameters
     ----------
@@ -283,13 +284,20 @@ def cut_mesh(mesh: Mesh, value: np.ndarray, *, locate=None) -> tuple[Mesh, int]:
     t[crossed] = value[a[crossed]] / (value[a[crossed]] - value[b[crossed]])
     if locate is not None and crossed.any():
         t[crossed] = np.clip(locate(a[crossed], b[crossed], t[crossed]), 0.0, 1.0)
+    # The ends of an inside edge whose faces all have their third corner outside stay: the
+    # kept strip along it is one edge wide (a post, a pole narrower than a cube), and moving
+    # both ends onto the cut would leave it no area.
+    inside = value < 0.0
+    flanked = np.zeros(edges.shape[0], dtype=bool)
+    flanked[corner_edge[inside[mesh.faces[:, [2, 0, 1]]]]] = True
+    pinned = np.zeros(mesh.n_vertices, dtype=bool)
+    pinned[edges[inside[edges].all(axis=1) & ~flanked]] = True
+    vertices, kept, moved = _cut_faces(mesh, value, edges, corner_edge, a, b, t, pinned)
     # An end moved onto the cut can pinch two stretches of rim into one vertex (a bow
     # tie): such ends stay, and their edges are cut instead.
-    pinned = np.zeros(mesh.n_vertices, dtype=bool)
-    vertices, kept, moved = _cut_faces(mesh, value, edges, corner_edge, a, b, t, pinned)
     pinch = moved & _bow_ties(kept, vertices.shape[0])[: mesh.n_vertices]
     if pinch.any():
-        vertices, kept, _ = _cut_faces(mesh, value, edges, corner_edge, a, b, t, pinch)
+        vertices, kept, _ = _cut_faces(mesh, value, edges, corner_edge, a, b, t, pinch | pinned)
     used, inverse = np.unique(kept, return_inverse=True)
     mesh = Mesh(vertices=vertices[used], faces=inverse.reshape(-1, 3).astype(np.int64))
     return mesh, int(np.count_nonzero(crossed))
