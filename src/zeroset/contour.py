@@ -112,11 +112,12 @@ def keyed_marching_cubes(field: DistanceField, *, owned=None):
     vertices = np.empty((unique_keys.size, 3))
     on_edge = (unique_keys & 3) != CENTRE_AXIS
     vertices[on_edge] = _edge_points(unique_keys[on_edge], keys, field)
-    # A loop fanned from its centre: the mean of its crossings, keyed by its cube.
+    # A loop fanned from its centre: the mean of its crossings (vertices of its fan, so
+    # among those just placed), keyed by its cube.
     cube = np.searchsorted(cube_keys, unique_keys[~on_edge] >> 2)
     row, edge = np.nonzero(centre[case[cube]])
-    crossings = _edge_points(_cube_edge_keys(cube_keys[cube[row]], edge), keys, field)
-    vertices[~on_edge] = mean_by(row, crossings, cube.size)
+    crossings = np.searchsorted(unique_keys, _cube_edge_keys(cube_keys[cube[row]], edge))
+    vertices[~on_edge] = mean_by(row, vertices[crossings], cube.size)
     return unique_keys, vertices, faces.reshape(-1, 3).astype(np.int64), cube_keys[cube_of_tri]
 
 

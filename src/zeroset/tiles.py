@@ -699,7 +699,11 @@ def _contour_tile(
         "faces": np.zeros((0, 3), dtype=np.int64),
         "cube_keys": np.zeros(0, dtype=np.int64),
         "support": DataSupport(
-            np.zeros((0, 3)), np.zeros(0), np.zeros(0), np.zeros(0, bool), np.zeros((0, 3))
+            points=np.zeros((0, 3)),
+            radii=np.zeros(0),
+            reach=np.zeros(0),
+            measured=np.zeros(0, bool),
+            planes=np.zeros((0, 3)),
         ),
         "counts": {},
         "peak_mib": peak,
