@@ -30,16 +30,19 @@ from ._defects import Branch, Defect, Defects, find_defects
 from ._files import inspection_lines, inspection_summary, write_defects_csv, write_ovality_csv
 from ._frame import UP
 from ._inspection import Inspection, inspect_pipe
+from ._joints import JOINT_KINDS, Joint
 from ._measure import Ovality, deviation, ovality
 from ._pictures import clock_label, deviation_map, mesh_picture, ovality_plot
 from ._unrolled import WallMap, unroll
 
 __all__ = [
+    "JOINT_KINDS",
     "UP",
     "Branch",
     "Defect",
     "Defects",
     "Inspection",
+    "Joint",
     "Ovality",
     "Pipe",
     "WallMap",

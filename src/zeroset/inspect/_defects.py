@@ -60,6 +60,11 @@ class Defect:
         Its circumferential extent, as arc length on the nominal wall.
     area : float
         Its area on the nominal wall, square metres.
+    depth_percent : float
+        ``|depth|`` in percent of the nominal diameter.
+    assess : bool
+        A dent deeper than `ASSESSED_DENT` percent of the nominal diameter: a plain dent
+        that ASME B31.8 (851.4.1) would have assessed.
     """
 
     kind: str
@@ -73,6 +78,8 @@ class Defect:
     clock_end: float
     width: float
     area: float
+    depth_percent: float = float("nan")
+    assess: bool = False
 
 
 @dataclass(frozen=True)
@@ -102,6 +109,8 @@ class Defects:
         How many of its standard errors a cell's residual needed (see `find_defects`).
     labels : (A, C) int64
         Index into `defects` of each cell of the wall map, -1 for none.
+    basis : str
+        What the threshold came from, in words (with its figures in mm).
     """
 
     defects: tuple[Defect, ...]
@@ -109,6 +118,7 @@ class Defects:
     threshold: float
     significance: float
     labels: np.ndarray
+    basis: str = ""
 
     def __post_init__(self) -> None:
         self.labels.flags.writeable = False

@@ -15,6 +15,7 @@ from ..types import Mesh
 from ._centreline import Pipe, beam_steps, fit_pipe
 from ._defects import Defects, find_defects
 from ._frame import UP
+from ._joints import Joint
 from ._measure import Ovality, deviation, ovality
 from ._unrolled import KERNEL, WallMap, unroll
 
@@ -43,6 +44,8 @@ class Inspection:
         centreline's ends).
     point_deviation : (N,) float64 or None
         The same for each scan point, when given.
+    joints : tuple of Joint
+        Ring features (joints, beads), by axial position.
     timings : dict
         Seconds per stage.
     """
@@ -53,6 +56,7 @@ class Inspection:
     defects: Defects
     vertex_deviation: np.ndarray
     point_deviation: np.ndarray | None
+    joints: tuple[Joint, ...] = ()
     timings: dict = field(default_factory=dict)
 
     def __post_init__(self) -> None:
@@ -146,5 +150,5 @@ def inspect_pipe(
     )
     timings["defects"] = time.perf_counter() - start
     return Inspection(
-        pipe, found_ovality, wall, defects, vertex_deviation, point_deviation, timings
+        pipe, found_ovality, wall, defects, vertex_deviation, point_deviation, timings=timings
     )

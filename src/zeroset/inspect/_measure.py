@@ -35,8 +35,8 @@ class Ovality:
     ovality : (K,) float64
         ``(D_max - D_min) / D_nominal`` of the section fitted at each station; NaN where
         the data do not go all round the pipe.
-    d_max, d_min : (K,) float64
-        The fitted section's largest and smallest diameter, metres.
+    d_max, d_mean, d_min : (K,) float64
+        The fitted section's largest, mean and smallest diameter, metres.
     major_clock : (K,) float64
         Clock angle of the largest diameter, degrees in [0, 180).
     """
@@ -44,11 +44,13 @@ class Ovality:
     axial: np.ndarray
     ovality: np.ndarray
     d_max: np.ndarray
+    d_mean: np.ndarray
     d_min: np.ndarray
     major_clock: np.ndarray
 
     def __post_init__(self) -> None:
-        for value in (self.axial, self.ovality, self.d_max, self.d_min, self.major_clock):
+        for value in (self.axial, self.ovality, self.d_max, self.d_mean, self.d_min,
+                      self.major_clock):  # fmt: skip
             value.flags.writeable = False
 
     def section_at(self, axial, clock, otherwise: float) -> np.ndarray:
@@ -91,6 +93,7 @@ def ovality(pipe: Pipe, x, *, step: float | None = None, located=None) -> Ovalit
         axial=fits["axial"],
         ovality=2.0 * amplitude / pipe.radius,
         d_max=2.0 * (a0 + amplitude),
+        d_mean=2.0 * a0,
         d_min=2.0 * (a0 - amplitude),
         major_clock=np.mod(0.5 * np.degrees(np.arctan2(b2, a2)), 180.0),
     )
