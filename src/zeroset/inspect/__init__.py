@@ -25,7 +25,7 @@ way of the largest component of its end-to-end vector (a pipe along z runs towar
 Lengths are metres throughout.
 """
 
-from ._centreline import Pipe, beam_steps, fit_pipe
+from ._centreline import Pipe, Unreliable, beam_steps, fit_pipe
 from ._defects import Branch, Defect, Defects, find_defects
 from ._files import inspection_lines, inspection_summary, write_defects_csv, write_ovality_csv
 from ._frame import UP
@@ -45,6 +45,7 @@ __all__ = [
     "Joint",
     "Ovality",
     "Pipe",
+    "Unreliable",
     "WallMap",
     "beam_steps",
     "clock_label",

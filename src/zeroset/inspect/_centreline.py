@@ -24,7 +24,7 @@ from ..topology import boundary_edges, face_area_vectors, vertex_normals
 from ..types import Mesh
 from ._frame import UP, clock_angles, transport_frames, unit
 
-__all__ = ["Pipe", "fit_pipe", "station_fits"]
+__all__ = ["Pipe", "Unreliable", "fit_pipe", "station_fits"]
 
 #: Points sampled on the mesh for its first radius.
 CURVATURE_SAMPLES = 20_000
@@ -50,6 +50,17 @@ BRANCHED = 0.25
 SMOOTH_ENOUGH = 0.5
 
 
+@dataclass(frozen=True)
+class Unreliable:
+    """A stretch of the centreline, metres from `axial_start` to `axial_end`, whose
+    sections the fitted circle or ellipse does not explain to within the noise, and why
+    (`reason`, in words). Nothing there is reported as a defect or a branch."""
+
+    axial_start: float
+    axial_end: float
+    reason: str
+
+
 @dataclass(frozen=True, eq=False)
 class Pipe:
     """A fitted pipe: a centreline sampled densely, its 12 o'clock frame, and its radius.
@@ -67,6 +78,12 @@ class Pipe:
         The median radius of the stations, metres.
     length : float
         Length of the centreline with data, metres (``axial[-1]`` less the margin).
+    extent : float
+        Length of the run the data cover, metres, measured without the fitted
+        centreline (along the sensors' path where known, else along the axis points'
+        path): `length` should agree with it.
+    unreliable : tuple of Unreliable
+        Stretches whose sections the fit does not explain.
     """
 
     axial: np.ndarray
@@ -76,6 +93,8 @@ class Pipe:
     radius: float
     measured_radius: float
     length: float
+    extent: float = float("nan")
+    unreliable: tuple[Unreliable, ...] = ()
 
     def __post_init__(self) -> None:
         for value in (self.axial, self.centres, self.tangents, self.ups):
