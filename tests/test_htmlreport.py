@@ -16,7 +16,7 @@ import pytest
 from zeroset import reconstruct
 from zeroset.errors import InputError
 from zeroset.htmlreport import inspection_summary, write_html_report, write_inspection_report
-from zeroset.inspect import Defect, Defects, inspect_pipe
+from zeroset.inspect import Defect, Defects, Joint, Unreliable, inspect_pipe
 from zeroset.io import read_mesh, write_mesh
 from zeroset.synthetic import sample_cylinder
 
@@ -166,7 +166,9 @@ def test_inspection_summary_reads_the_clock_and_has_no_nan(inspected):
     times = [d["clock_time"] for d in summary["defects"]]
     assert times == ["12:00", "3:00", "12:30", "12:00", "6:15"]
     assert summary["defects"][0]["uncertainty"] is None
-    assert summary["max_ovality"] is None
+    assert summary["stations"] == {
+        "count": 0, "d_min_mm": None, "d_mean_mm": None, "d_max_mm": None, "ovality_percent": None
+    }  # fmt: skip
     json.dumps(summary, allow_nan=False)  # ready for JSON as it is
 
 
@@ -331,3 +333,39 @@ def test_viewer_colours_by_deviation_first_and_shows_the_inspection(inspected):
         assert errors == []
     finally:
         browser.quit()
+
+
+def test_viewer_tables_the_stations_defects_joints_and_centreline_check(inspected, tmp_path):
+    *_, mesh, inspection = inspected
+    dent = Defect("dent", 0.5, 330.0, -0.032, 5e-4, 0.45, 0.55, 320.0, 340.0, 0.09, 0.01, 6.4, True)
+    joints = (Joint("gap", 0.3, 0.012, 0.001, depth=0.003), Joint("offset", 0.6, 0.004, 5e-4, 90.0))
+    shown = replace(
+        inspection,
+        defects=replace(inspection.defects, defects=(dent,), basis="4.9 standard errors"),
+        joints=joints,
+        pipe=replace(
+            inspection.pipe,
+            extent=inspection.pipe.length + 0.2,
+            unreliable=(Unreliable(0.8, 0.9, "the sections are not ellipses"),),
+        ),
+    )
+    page = write_inspection_report(tmp_path / "shown.html", mesh, shown)
+    browser = _browser()
+    try:
+        _open(browser, page)
+        text = browser.find_element("id", "numbers").text
+        rows = browser.execute_script(
+            "return Array.from(document.querySelectorAll('#numbers tr.warn'), (r) => r.innerText)"
+        )
+        errors = [e for e in browser.get_log("browser") if e["level"] == "SEVERE"]
+    finally:
+        browser.quit()
+    assert errors == []
+    assert "threshold: 4.9 standard errors" in text
+    assert "Stations: min / median / max over" in text and "D_mean" in text
+    assert "the sections are not ellipses" in text
+    assert "Joints" in text and "3:00" in text
+    # the centreline's length 0.2 m from the data's extent, and the dent to assess, are marked
+    assert len(rows) == 2
+    assert "the data extend" in rows[0] and "differ by more than 2 % or one diameter" in rows[0]
+    assert "6.4" in rows[1] and "> 6 % D, assess" in rows[1]

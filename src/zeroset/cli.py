@@ -202,9 +202,10 @@ def _parser() -> argparse.ArgumentParser:
         help="inspect a pipe: centreline, deviation, ovality and defects",
         description="Fit a pipe's centreline and nominal diameter to its mesh, measure "
         "every vertex's (and point's) deviation from the nominal pipe and the ovality per "
-        "station, and find the dents and bulges beyond the noise. Writes defects.csv, "
-        "ovality.csv, inspection.json, deviation-map.png (the unrolled wall), ovality.png, "
-        "deviation.png (the mesh coloured by deviation) and report.html to DIR.",
+        "station, and find the dents and bulges beyond the noise, and the joints. Writes "
+        "defects.csv, joints.csv, ovality.csv, inspection.json, deviation-map.png (the "
+        "unrolled wall), ovality.png, deviation.png (the mesh coloured by deviation) and "
+        "report.html to DIR.",
     )
     ins.add_argument("mesh", type=Path, help="the pipe's wall: .ply .obj .stl .off")
     ins.add_argument(
@@ -676,6 +677,7 @@ def _run_render(args: argparse.Namespace) -> int:
 #: The files an inspection writes to its folder.
 INSPECTION_FILES = (
     "defects.csv",
+    "joints.csv",
     "ovality.csv",
     "inspection.json",
     "deviation-map.png",
@@ -740,11 +742,13 @@ def _write_inspection(args, folder: Path, mesh, points, inspection, pictures) ->
         inspection_lines,
         inspection_summary,
         write_defects_csv,
+        write_joints_csv,
         write_ovality_csv,
     )
 
     folder.mkdir(exist_ok=True)
     write_defects_csv(folder / "defects.csv", inspection)
+    write_joints_csv(folder / "joints.csv", inspection)
     write_ovality_csv(folder / "ovality.csv", inspection)
     io.write_json(folder / "inspection.json", inspection_summary(inspection))
     for name, picture in pictures.items():

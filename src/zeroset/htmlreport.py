@@ -137,7 +137,11 @@ def write_inspection_report(
     read from a file): the viewer shows the mesh, coloured by its deviation from the
     nominal pipe, with its boundary edges, and the points when given; beside it are the
     inspection's numbers only (:func:`zeroset.inspect.inspection_summary`, the embedded report's
-    ``"inspection"``), and below it the `pictures`.
+    ``"inspection"``), and below it the `pictures`. The numbers are tables: the pipe, with
+    the fitted centreline's length beside the data's extent (marked where they disagree)
+    and the defect threshold with its basis; the diameters and ovality over the stations;
+    the unreliable stretches; the defects, with their depth in mm and in % of the diameter
+    and those B31.8 would assess marked; the joints; the branches.
 
     Parameters
     ----------

@@ -247,6 +247,7 @@
     }
     numbers.append(h, table);
     if (note) numbers.append(note);
+    return table;
   }
 
   function list(items) {
@@ -262,23 +263,52 @@
   if (report.inspection) {
     const n = report.inspection;
     const clock = (item) => `${item.clock.toFixed(0)}\u00b0\u00a0(${item.clock_time})`;
-    section("Inspection", [
+    const spread = (s, digits) => (s === null ? "not measured"
+      : [s.min, s.median, s.max].map((v) => v.toFixed(digits)).join(" / "));
+    const extent = n.extent === null ? "the data\u2019s extent not measured"
+      : `the data extend ${n.extent.toFixed(2)} m`;
+    const warn = (table, row) => table.rows[row].classList.add("warn");
+    const summary = section("Inspection", [
       ["nominal diameter", `${mm(n.nominal_diameter)} mm`],
       ["measured diameter", `${mm(n.measured_diameter)} mm`],
-      ["length", `${n.length.toFixed(3)} m`],
-      ["defect threshold", `${mm(n.threshold, 2)} mm`],
-      ["max ovality",
-        n.max_ovality === null ? "not measured" : `${(100 * n.max_ovality).toFixed(2)} %`],
-      ["defects", n.defects.length], ["branches", n.branches.length],
+      ["centreline", `fitted ${n.length.toFixed(2)} m; ${extent}` + (n.length_agrees === false
+        ? " \u26a0 they differ by more than 2 % or one diameter: check the centreline" : "")],
+      ["defect threshold", `${n.threshold_mm.toFixed(2)} mm`],
+      ["defects", n.defects.length], ["joints", n.joints.length],
+      ["branches", n.branches.length],
+    ], n.threshold_basis ? list([`threshold: ${n.threshold_basis}`]) : null);
+    if (n.length_agrees === false) warn(summary, 2);
+    const s = n.stations;
+    section(`Stations: min / median / max over ${s.count}`, [
+      ["ovality (D_max \u2212 D_min) / D_nominal", `${spread(s.ovality_percent, 2)} %`],
+      ["D_min", `${spread(s.d_min_mm, 1)} mm`], ["D_mean", `${spread(s.d_mean_mm, 1)} mm`],
+      ["D_max", `${spread(s.d_max_mm, 1)} mm`],
     ]);
+    if (n.unreliable.length) {
+      section("Unreliable stretches (no defect judged there)", n.unreliable.map((u) => [
+        `${u.axial_start.toFixed(3)}\u2013${u.axial_end.toFixed(3)}`, u.reason,
+      ]), null, ["axial m", "the fit does not explain the sections"]);
+    }
     if (n.defects.length) {
-      section("Defects", n.defects.map((d) => [
+      const table = section("Defects", n.defects.map((d) => [
         d.number, d.kind, d.axial.toFixed(3), clock(d),
         `${mm(d.depth)} \u00b1 ${d.uncertainty === null ? "?" : mm(d.uncertainty)}`,
+        d.depth_percent === null ? "" : d.depth_percent.toFixed(1),
+        d.assess ? "> 6 % D, assess" : "",
         `${d.axial_start.toFixed(3)}\u2013${d.axial_end.toFixed(3)}`, mm(d.width, 0),
         (1e4 * d.area).toFixed(1),
-      ]), null, ["#", "kind", "axial m", "clock", "depth mm", "axial extent m", "width mm",
-        "area cm\u00b2"]);
+      ]), null, ["#", "kind", "axial m", "clock", "depth mm", "depth % D", "B31.8",
+        "axial extent m", "width mm", "area cm\u00b2"]);
+      n.defects.forEach((d, i) => { if (d.assess) warn(table, i + 1); });
+    }
+    if (n.joints.length) {
+      const opt = (v, digits) => (v === null ? "" : v.toFixed(digits));
+      section("Joints", n.joints.map((j) => [
+        j.number, j.kind, j.axial_m.toFixed(3),
+        `${opt(j.size_mm, 1)} \u00b1 ${j.uncertainty_mm === null ? "?" : opt(j.uncertainty_mm, 1)}`,
+        j.clock === null ? "" : `${j.clock_deg.toFixed(0)}\u00b0\u00a0(${j.clock})`,
+        opt(j.depth_mm, 1),
+      ]), null, ["#", "kind", "axial m", "size mm", "offset towards", "gap depth mm"]);
     }
     if (n.branches.length) {
       section("Branches", n.branches.map((b, i) => [

@@ -11,9 +11,9 @@
 - `ovality`: ``(D_max - D_min) / D_nominal`` per station.
 - `unroll` and `find_defects`: the wall unrolled into axial position by clock angle and
   smoothed, and its connected regions beyond the noise.
-- `inspection_summary`, `inspection_lines`, `write_defects_csv`, `write_ovality_csv`: the
-  numbers as JSON, printed lines and tables; `deviation_map`, `ovality_plot` and
-  `mesh_picture`: the pictures, as PNG bytes.
+- `inspection_summary`, `inspection_lines`, `write_defects_csv`, `write_joints_csv`,
+  `write_ovality_csv`: the numbers as JSON, printed lines and tables; `deviation_map`,
+  `ovality_plot` and `mesh_picture`: the pictures, as PNG bytes.
 
 Clock convention: 12 o'clock (0 degrees) is the world's `up` (default +z) projected onto
 the first cross-section, or +y when the pipe starts within 30 degrees of `up` (a vertical
@@ -27,7 +27,13 @@ Lengths are metres throughout.
 
 from ._centreline import Pipe, Unreliable, beam_steps, fit_pipe
 from ._defects import Branch, Defect, Defects, find_defects
-from ._files import inspection_lines, inspection_summary, write_defects_csv, write_ovality_csv
+from ._files import (
+    inspection_lines,
+    inspection_summary,
+    write_defects_csv,
+    write_joints_csv,
+    write_ovality_csv,
+)
 from ._frame import UP
 from ._inspection import Inspection, inspect_pipe
 from ._joints import JOINT_KINDS, Joint
@@ -61,5 +67,6 @@ __all__ = [
     "ovality_plot",
     "unroll",
     "write_defects_csv",
+    "write_joints_csv",
     "write_ovality_csv",
 ]

@@ -10,6 +10,7 @@ docs/inspection.md).
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -24,7 +25,7 @@ from ..topology import boundary_edges, face_area_vectors, vertex_normals
 from ..types import Mesh
 from ._frame import UP, clock_angles, transport_frames, unit
 
-__all__ = ["Pipe", "Unreliable", "fit_pipe", "station_fits"]
+__all__ = ["Pipe", "Unreliable", "check_stations", "fit_pipe", "station_fits"]
 
 #: Points sampled on the mesh for its first radius.
 CURVATURE_SAMPLES = 20_000
@@ -43,6 +44,17 @@ TUKEY = 4.685
 #: Sectors of angle around a station, and how many its data must cover to fit a circle.
 SECTORS = 16
 COVERED = 12
+#: The data's ends are where stretches hold fewer than this share of a typical
+#: stretch's points.
+THIN = 0.02
+#: Fewest points a station needs for its fit.
+MIN_STATION_POINTS = 16
+#: A station is unreliable where its section leaves residuals spread more than this many
+#: times the points' noise, where its centre lies more than `OFF_CENTRE` radii off the
+#: centreline, or where no section is fitted over more than `GUIDED` radii running.
+SPREAD = 2.0
+OFF_CENTRE = 0.01
+GUIDED = 2.0
 #: Vertices whose curvature is further than this share from the pipe's do not place its
 #: first centreline (a branch of another diameter, a flange, the rim), unless fewer than
 #: `SMOOTH_ENOUGH` of them are that close (coarse triangles, whose curvature is rough).
@@ -168,7 +180,13 @@ def beam_steps(pipe: Pipe, samples: np.ndarray, viewpoints, located) -> np.ndarr
 
 
 def fit_pipe(
-    mesh: Mesh, points=None, *, nominal_diameter: float | None = None, up=UP, rng=0
+    mesh: Mesh,
+    points=None,
+    *,
+    viewpoints=None,
+    nominal_diameter: float | None = None,
+    up=UP,
+    rng=0,
 ) -> Pipe:
     """Fit a pipe's centreline, frame and radius to a mesh of its wall.
 
@@ -180,6 +198,10 @@ def fit_pipe(
     points : (N, 3) array_like, optional
         The scan points: when given, the cross-sections are fitted to them rather than to
         the mesh's vertices (a mesh rounds the seam where a branch joins).
+    viewpoints : (N, 3) array_like, optional
+        The scanner's position for each of the `points` (NaN rows where not known), in
+        the order it scanned them. The robot travels inside the pipe: the run fitted is
+        the one through its stations, and it runs the way the robot went.
     nominal_diameter : float, optional
         The pipe's nominal inner diameter in metres; default the measured one.
     up : (3,) array_like
@@ -190,8 +212,10 @@ def fit_pipe(
     Returns
     -------
     Pipe
-        Its centreline runs from the end where the largest component of the end-to-end
-        vector is smallest (a pipe along z runs towards +z).
+        Its centreline runs the way the robot went when `viewpoints` are given (from the
+        station it scanned first); else from the end where the largest component of the
+        end-to-end vector is smallest (a pipe along z runs towards +z). Its `extent` is
+        the length the data cover along the first centreline, from the axis points alone.
 
     Raises
     ------
@@ -212,9 +236,14 @@ def fit_pipe(
         used, radius = tube, 1.0 / abs(float(np.median(curvature[tube])))
     if used.size > MAX_FIT_VERTICES:
         used = np.sort(rng.choice(used, MAX_FIT_VERTICES, replace=False))
-    path = _straight_run(mesh.vertices[used] + towards_axis * radius * normals[used], radius)
+    stations = None
+    if viewpoints is not None and points is not None:
+        sensors = np.broadcast_to(np.asarray(viewpoints, dtype=np.float64), np.shape(points))
+        stations = _stations(sensors - shift, radius)
+    axis = mesh.vertices[used] + towards_axis * radius * normals[used]
+    path = _straight_run(axis, radius, stations)
     run = path[-1] - path[0]
-    if run[np.argmax(np.abs(run))] < 0:  # run along the largest component's positive way
+    if stations is None and run[np.argmax(np.abs(run))] < 0:  # the largest component's way
         path = path[::-1]
     if points is None:  # the surface, evenly, whatever the size of its triangles
         wall = sample_surface(mesh, MAX_FIT_VERTICES, rng=rng)[0]
@@ -223,14 +252,19 @@ def fit_pipe(
         if wall.shape[0] > MAX_FIT_VERTICES:
             wall = wall[np.sort(rng.choice(wall.shape[0], MAX_FIT_VERTICES, replace=False))]
     pipe = _pipe_along(path, radius, radius, up, margin=radius)
+    first, last = _data_ends(pipe, wall, pipe.locate(wall), STATION * radius)
+    extent = last - first
     for _ in range(ROUNDS):
-        moved = _refit(pipe, wall, up)
+        moved = _refit(pipe, wall, up, path)
         inner = pipe.centres[(pipe.axial > 0) & (pipe.axial < pipe.length)]
-        pipe, change = moved, np.nanmax(moved.locate(inner)[2], initial=0.0)
+        change = max(
+            np.nanmax(moved.locate(inner)[2], initial=0.0), abs(moved.length - pipe.length)
+        )
+        pipe = moved
         if change < SETTLED * pipe.radius:
             break
     radius = pipe.radius if nominal_diameter is None else 0.5 * float(nominal_diameter)
-    return replace(pipe, centres=pipe.centres + shift, radius=radius)
+    return replace(pipe, centres=pipe.centres + shift, radius=radius, extent=extent)
 
 
 def station_fits(pipe: Pipe, located, *, step: float | None = None, oval: bool = True) -> dict:
@@ -244,7 +278,9 @@ def station_fits(pipe: Pipe, located, *, step: float | None = None, oval: bool =
     angle t, by iteratively reweighted least squares (Tukey's biweight), so dents and
     branches do not pull it; with ``oval=False`` only the circle (the first three terms).
     Returns arrays per station: ``axial`` (K,) centres, ``coef`` (K, 5) or (K, 3),
-    ``count`` (K,), ``fitted`` (K,) bool and ``complete`` (K,) bool.
+    ``count`` (K,), ``fitted`` (K,) bool, ``complete`` (K,) bool and ``spread`` (K,),
+    the median over the sectors of angle of the residuals' robust spread in each (a dent
+    in a few sectors leaves it, a section that fits nowhere does not).
 
     A station is not fitted where its points cover fewer than `COVERED` of `SECTORS`
     sectors of angle (counting points within a tenth of the median distance from the
@@ -273,7 +309,7 @@ def station_fits(pipe: Pipe, located, *, step: float | None = None, oval: bool =
     near = np.abs(distance - typical) < 0.1 * typical  # a branch covers nothing
     covered[station[near], sector[near]] = True
     count = np.bincount(station, minlength=n_stations)
-    fitted = (covered.sum(axis=1) >= COVERED) & (count >= 16)
+    fitted = (covered.sum(axis=1) >= COVERED) & (count >= MIN_STATION_POINTS)
     fitted &= count >= 0.3 * np.median(count[fitted]) if fitted.any() else fitted
     weight = np.where(np.abs(distance - typical) < 0.3 * typical, 1.0, 0.0)
     for _ in range(6):
@@ -282,6 +318,12 @@ def station_fits(pipe: Pipe, located, *, step: float | None = None, oval: bool =
         scale = _station_mad(np.abs(residual), station, weight > 0, n_stations)
         u = residual / (TUKEY * np.maximum(scale[station], 1e-9))
         weight = np.where(np.abs(u) < 1.0, (1.0 - u**2) ** 2, 0.0)
+    by_sector = _station_mad(
+        np.abs(residual), station * SECTORS + sector, residual == residual, n_stations * SECTORS
+    ).reshape(n_stations, SECTORS)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # a station without points
+        spread = np.nanmedian(np.where(np.isfinite(by_sector), by_sector, np.nan), axis=1)
     offset = np.hypot(coef[:, 1], coef[:, 2])
     typical = np.median(coef[fitted, 0]) if fitted.any() else typical
     fitted &= (offset < 0.5 * typical) & (np.abs(coef[:, 0] - typical) < 0.25 * typical)
@@ -291,7 +333,60 @@ def station_fits(pipe: Pipe, located, *, step: float | None = None, oval: bool =
         "count": count,
         "fitted": fitted,
         "complete": fitted & covered.all(axis=1),
+        "spread": spread,
     }
+
+
+def check_stations(pipe: Pipe, located, noise: float, *, excused=()) -> tuple[Unreliable, ...]:
+    """The stretches of `pipe` whose sections do not explain their wall: `located` is
+    ``pipe.locate(x)`` of the points x, `noise` (m) their spread about the local wall.
+
+    A station (`station_fits`) is unreliable where its fitted section leaves a robust
+    spread of residuals above `SPREAD` times the `noise` in most sectors of angle (a dent
+    takes a few; the wall there is no circle or
+    ellipse round this centreline: a junction, a collapse, a centreline that cut a
+    corner), where the section's centre lies more than `OFF_CENTRE` radii off the
+    centreline (the centreline could not follow it), and where no section could be fitted
+    for more than `GUIDED` radii running (the data do not go round the pipe: the
+    centreline there follows the axis points or runs straight on, unchecked). Stations
+    within the axial stretches `excused` ((start, end) pairs, metres: ring features,
+    whose wall is meant to leave the section) are not judged. Consecutive stations
+    with the same reason make one stretch.
+    """
+    circles = station_fits(pipe, located, oval=False)
+    sections = station_fits(pipe, located)
+    good = circles["fitted"] | sections["complete"]
+    coef = np.where(sections["complete"][:, None], sections["coef"][:, :3], circles["coef"])
+    scale = np.where(sections["complete"], sections["spread"], circles["spread"])
+    axial = circles["axial"]
+    step = axial[1] - axial[0] if axial.size > 1 else pipe.length
+    inside = (axial > 0.0) & (axial < pipe.length)
+    reason = np.full(axial.size, "", dtype=object)
+    spread = good & (scale > SPREAD * noise)
+    reason[spread] = [
+        f"its section leaves residuals of {1000 * v:.1f} mm, against noise of {1000 * noise:.1f} mm"
+        for v in scale[spread]
+    ]
+    off = good & ~spread & (np.hypot(coef[:, 1], coef[:, 2]) > OFF_CENTRE * pipe.radius)
+    reason[off] = "the centreline does not follow its section's centre"
+    runs = np.split(np.arange(axial.size), np.flatnonzero(np.diff(good.astype(np.int8))) + 1)
+    for run in runs:
+        if not good[run[0]] and run.size * step > GUIDED * pipe.radius:
+            reason[run] = "no section could be fitted: the data do not go round the pipe"
+    for start, end in excused:
+        reason[(axial > start - step) & (axial < end + step)] = ""
+    reason[~inside] = ""
+    stretches = []
+    for run in np.split(np.arange(axial.size), np.flatnonzero(reason[1:] != reason[:-1]) + 1):
+        if reason[run[0]]:
+            stretches.append(
+                Unreliable(
+                    float(max(axial[run[0]] - 0.5 * step, 0.0)),
+                    float(min(axial[run[-1]] + 0.5 * step, pipe.length)),
+                    str(reason[run[0]]),
+                )
+            )
+    return tuple(stretches)
 
 
 def _weighted_fits(basis, values, weight, station, n_stations, fitted) -> np.ndarray:
@@ -374,9 +469,14 @@ def _radius_and_side(mesh: Mesh, rng: np.random.Generator) -> tuple[float, float
     return 0.5 / abs(curvature), (1.0 if curvature < 0 else -1.0)
 
 
-def _straight_run(centres: np.ndarray, radius: float) -> np.ndarray:
-    """(K, 3) cell means of `centres` along their spanning tree, between the two of its ends
-    that lie farthest apart: a tee's straight run rather than a turn into its branch."""
+def _straight_run(centres: np.ndarray, radius: float, stations=None) -> np.ndarray:
+    """(K, 3) cell means of `centres` along their spanning tree, between two of its ends.
+
+    Without `stations` the two ends lie farthest apart: a tee's straight run rather than
+    a turn into its branch. With the scanner's `stations` (S, 3), in the order the robot
+    visited them, the run is the one the robot travelled: from the end beyond its first
+    station to the end beyond its last, passing by both.
+    """
     cell = 0.5 * radius
     key = np.floor(centres / cell).astype(np.int64)
     _, label = np.unique(key, axis=0, return_inverse=True)
@@ -394,11 +494,18 @@ def _straight_run(centres: np.ndarray, radius: float) -> np.ndarray:
     tree = csgraph.minimum_spanning_tree(graph)
     _, component = csgraph.connected_components(tree, directed=False)
     degree = np.diff((tree + tree.T).tocsr().indptr)
-    ends = np.flatnonzero((component == np.argmax(np.bincount(component))) & (degree <= 1))
-    # The two ends farthest apart: the one farthest from the ends' mean, then the one
-    # farthest from it (no all-pairs table: a long pipe's tree has many short twigs).
-    start = int(ends[np.argmax(np.linalg.norm(means[ends] - means[ends].mean(axis=0), axis=1))])
-    node = int(ends[np.argmax(np.linalg.norm(means[ends] - means[start], axis=1))])
+    main = component == np.argmax(np.bincount(component))
+    ends = np.flatnonzero(main & (degree <= 1))
+    if stations is not None and len(stations) >= 2:
+        near = cKDTree(means[main]).query(np.asarray(stations)[[0, -1]])[1]
+        first, last = np.flatnonzero(main)[near]
+        start, node = _beyond(tree, ends, first, last), _beyond(tree, ends, last, first)
+    else:
+        # The two ends farthest apart: the one farthest from the ends' mean, then the one
+        # farthest from it (no all-pairs table: a long pipe's tree has many short twigs).
+        middle = means[ends].mean(axis=0)
+        start = int(ends[np.argmax(np.linalg.norm(means[ends] - middle, axis=1))])
+        node = int(ends[np.argmax(np.linalg.norm(means[ends] - means[start], axis=1))])
     _, before = csgraph.dijkstra(tree, directed=False, indices=start, return_predecessors=True)
     path = [node]
     while before[node] >= 0:
@@ -407,6 +514,43 @@ def _straight_run(centres: np.ndarray, radius: float) -> np.ndarray:
     if len(path) < 3:
         raise InputError("the mesh is too short along its axis to fit a pipe to")
     return means[path[::-1]]
+
+
+def _beyond(tree, ends: np.ndarray, near: int, far: int) -> int:
+    """The end of `tree` (of the nodes `ends`) farthest beyond node `near` seen from node
+    `far`: among the ends whose path to `far` passes by `near`; `near` if none does."""
+    from_near, from_far = csgraph.dijkstra(tree, directed=False, indices=[near, far])
+    through = np.abs(from_far[ends] - from_far[near] - from_near[ends]) <= 1e-9 * (
+        1.0 + from_far[ends]
+    )
+    if not through.any():
+        return int(near)
+    return int(ends[through][np.argmax(from_near[ends][through])])
+
+
+def _stations(viewpoints: np.ndarray, radius: float) -> np.ndarray | None:
+    """(S, 3) the scanner's stations in the order the robot visited them (the order their
+    first points have in the scan): the means of its positions that lie within a radius
+    of each other; None without any known position."""
+    known = np.isfinite(viewpoints).all(axis=1)
+    if not known.any():
+        return None
+    unique, first, counts = np.unique(
+        viewpoints[known], axis=0, return_index=True, return_counts=True
+    )
+    pairs = cKDTree(unique).query_pairs(radius, output_type="ndarray")
+    graph = sparse.coo_matrix(
+        (np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(len(unique),) * 2
+    )
+    n_groups, group = csgraph.connected_components(graph, directed=False)
+    weight = counts.astype(np.float64)
+    centres = (
+        np.stack([np.bincount(group, weight * unique[:, i], n_groups) for i in range(3)], 1)
+        / np.bincount(group, weight, n_groups)[:, None]
+    )
+    order = np.full(n_groups, np.iinfo(np.int64).max)
+    np.minimum.at(order, group, first)
+    return centres[np.argsort(order)]
 
 
 def _pipe_along(path: np.ndarray, radius: float, measured: float, up, margin: float) -> Pipe:
@@ -469,10 +613,44 @@ def _smooth(x: np.ndarray, y: np.ndarray, knot: float):
     return interpolate.make_lsq_spline(x, y, knots, k=3)
 
 
-def _refit(pipe: Pipe, wall: np.ndarray, up) -> Pipe:
+def _data_ends(pipe: Pipe, wall: np.ndarray, located, step: float) -> tuple[float, float]:
+    """Axial positions (m) where the data start and stop: the ends of the stretches of
+    `step` metres holding two points or more of the `wall` (N, 3) near it, and `THIN` of
+    a typical stretch's (the range noise scatters a few beyond an open end), joined where
+    they lie less than a radius apart, around the middle of the data; thin tails count,
+    stray points beyond a gap do not. Points beyond the centreline's ends (NaN in
+    `located`) count along the straight lines its ends run on."""
+    along, _, distance = located
+    beyond = ~np.isfinite(along)
+    if beyond.any():
+        ends = [(pipe.centres[i], pipe.tangents[i], pipe.axial[i]) for i in (0, -1)]
+        past = [a + (wall[beyond] - c) @ t for c, t, a in ends]
+        gaps = [np.linalg.norm(wall[beyond] - c, axis=1) for c, _, _ in ends]
+        along = along.copy()
+        along[beyond] = np.where(gaps[0] < gaps[1], past[0], past[1])
+    typical = np.nanmedian(distance)
+    on_wall = np.isfinite(along) & ~(np.abs(distance - typical) >= 0.3 * typical)
+    bins = np.floor(along[on_wall] / step).astype(np.int64)
+    counts = np.bincount(bins - bins.min())
+    held = np.flatnonzero(counts >= max(2.0, THIN * np.median(counts[counts > 0]))) + bins.min()
+    # the stretch without a gap of a radius that holds the middle of the data
+    pieces = np.split(held, np.flatnonzero(np.diff(held) * step > pipe.radius) + 1)
+    middle = np.median(bins)
+    main = min(pieces, key=lambda p: 0 if p[0] <= middle <= p[-1] else abs(p - middle).min())
+    inside = along[on_wall][(bins >= main[0]) & (bins <= main[-1])]
+    return float(inside.min()), float(inside.max())
+
+
+def _refit(pipe: Pipe, wall: np.ndarray, up, guide: np.ndarray) -> Pipe:
     """Move the centreline onto the centres of the sections fitted to `wall` per station:
     circle and ovality where the data go all round, a circle only where they do not (beside
-    an opening a second harmonic would trade off with the centre)."""
+    an opening a second harmonic would trade off with the centre).
+
+    Where no station is fitted for two stations' length (the thin, one-sided data near
+    the scan's ends), the centreline follows the `guide` (K, 3), the axis points it
+    started from, rather than running straight on from the last fitted station: after a
+    bend, that would leave the pipe.
+    """
     located = pipe.locate(wall)
     circles = station_fits(pipe, located, oval=False)
     sections = station_fits(pipe, located)
@@ -484,13 +662,38 @@ def _refit(pipe: Pipe, wall: np.ndarray, up) -> Pipe:
     centre, tangent, up_dir = pipe._at(along)
     right = np.cross(tangent, up_dir)
     moved = centre + coef[:, 1:2] * up_dir + coef[:, 2:3] * right
+    guided = pipe.locate(guide)[0]
+    step = circles["axial"][1] - circles["axial"][0] if circles["axial"].size > 1 else 0.0
+    gap = np.abs(guided[:, None] - along[None, :]).min(axis=1) if along.size else guided
+    alone = np.isfinite(guided) & (gap > 2.0 * step)
+    if alone.any():
+        order = np.argsort(np.r_[along, guided[alone]], kind="stable")
+        along = np.r_[along, guided[alone]][order]
+        moved = np.concatenate([moved, guide[alone]])[order]
+        tangent = np.concatenate([tangent, pipe._at(guided[alone])[1]])[order]
     measured = float(np.median(coef[:, 0]))
-    first, last = np.nanpercentile(located[0], [0.05, 99.95])
+    first, last = _data_ends(pipe, wall, located, step)
+    head = _end_direction(moved[::-1], along[0] - along[::-1], measured)
+    tail = _end_direction(moved, along - along[0], measured)
     moved = np.concatenate(
         [
-            moved[:1] - (along[0] - first) * tangent[:1],
+            moved[:1] + (along[0] - first) * head,
             moved,
-            moved[-1:] + (last - along[-1]) * tangent[-1:],
+            moved[-1:] + (last - along[-1]) * tail,
         ]
     )
     return _pipe_along(moved, measured, measured, up, margin=measured)
+
+
+def _end_direction(centres: np.ndarray, along: np.ndarray, reach: float) -> np.ndarray:
+    """(1, 3) unit direction in which the ordered `centres` (K, 3) at increasing `along`
+    (m) leave their last one: the line fitted to those within `reach` metres of it (the
+    last two at least), whose noise a single tangent would carry far beyond the data."""
+    last = centres[along >= along[-1] - reach]
+    if last.shape[0] < 2:
+        last = centres[-2:]
+    mean = last.mean(axis=0)
+    direction = np.linalg.svd(last - mean, full_matrices=False)[2][0]
+    if direction @ (last[-1] - last[0]) < 0:
+        direction = -direction
+    return direction[None, :]

@@ -19,6 +19,9 @@ FALSE_ALARMS = 0.05
 #: A mesh alone, whose errors are its neighbours' errors too (a ripple beside a dent): a
 #: cell is judged when its residual exceeds this many robust deviations of the whole wall.
 MESH_SIGNIFICANCE = 6.0
+#: A dent deeper than this share of the nominal diameter, in percent, is one that ASME
+#: B31.8 (851.4.1) has assessed: a plain dent deeper than 6 % of the diameter.
+ASSESSED_DENT = 6.0
 #: Cells where at least this share of the samples lies outside the wall are a branch.
 BRANCH = 0.5
 #: Defects within this share of the radius of a branch's opening are part of the branch.
@@ -133,15 +136,16 @@ def find_defects(
     threshold: float | None = None,
     located=None,
     beams=None,
+    excluded=(),
 ) -> Defects:
     """Find the regions of the wall map whose residual is significant: dents and bulges.
 
     A cell is judged defective when its residual (the deviation from its station's fitted
     section) exceeds z standard errors (`_significance`: z grows with the wall's area so that
-    noise alone makes `FALSE_ALARMS` regions over the whole wall), the errors scaled up by
-    the wall's own dispersion of residual over error where it exceeds 1 (what the noise
-    model misses, e.g. the sections' fits, is noise too); for a mesh's samples,
-    `MESH_SIGNIFICANCE` robust deviations of the wall. Connected defective cells, all
+    noise alone makes `FALSE_ALARMS` regions over the whole wall). The errors come from the
+    points' own noise about the local wall (`WallMap.noise`), never from the map's
+    dispersion, which holds real geometry (joints, ovality, deposits). For a mesh's
+    samples, `MESH_SIGNIFICANCE` robust deviations of the wall. Connected defective cells, all
     inward or all outward, make a region (the clock wraps round); regions smaller than
     `MIN_KERNELS` kernel areas are noise. Cells where the samples leave the wall outward
     (`BRANCH`) are a branch; with the cells without data next to them (its opening) and
@@ -155,7 +159,9 @@ def find_defects(
     the samples, a row of NaN where unknown) the bump is fitted along them, where the
     range noise lies (see `_BumpFit.bump`). Defects shallower than `threshold` (metres;
     default the median over the wall of the residual a cell needs to be significant) are
-    not reported. `located` is ``pipe.locate(samples)`` when already computed.
+    not reported. `located` is ``pipe.locate(samples)`` when already computed. Cells in
+    the axial stretches `excluded` ((start, end) pairs, metres: ring features, and
+    stations whose sections the fit does not explain) are not judged at all.
     """
     residual = wall.residual
     cell_axial = wall.axial_edges[1] - wall.axial_edges[0]
@@ -167,18 +173,23 @@ def find_defects(
     near_edge = ndimage.binary_dilation(
         empty, structure=np.ones((3, 3)), iterations=margin, border_value=0
     )[1:-1]
-    defined = np.isfinite(residual) & ~near_edge
+    skipped = np.zeros(middle.shape, dtype=bool)
+    for start, end in excluded:
+        skipped |= (middle >= start) & (middle <= end)
+    defined = np.isfinite(residual) & ~near_edge & ~skipped[:, None]
     error = np.where(defined, wall.error, np.inf)
-    significance = MESH_SIGNIFICANCE
+    significance, area = MESH_SIGNIFICANCE, np.count_nonzero(defined) * cell_axial * cell_arc
     if wall.independent and defined.any():
-        dispersion = 1.4826 * float(np.median(np.abs(residual[defined] / error[defined])))
-        area = np.count_nonzero(defined) * cell_axial * cell_arc
-        significance = _significance(area, wall.kernel) * max(dispersion, 1.0)
+        significance = _significance(area, wall.kernel)
     limit = significance * error
     reported = float(np.median(limit[defined])) if defined.any() else 0.0
+    basis = _basis(wall, defined, significance, area, reported)
     if threshold is not None:
         reported = float(threshold)
-    leaving = wall.off_wall >= BRANCH
+        basis = (
+            f"given: {1000 * reported:.2f} mm (cells still need {significance:.1f} standard errors)"
+        )
+    leaving = (wall.off_wall >= BRANCH) & ~skipped[:, None]
     openings = _wrapped_labels(leaving | ~np.isfinite(residual))
     branching = np.unique(openings[leaving])
     branches = [_branch(wall, openings == label, cell_axial * cell_arc) for label in branching]
@@ -205,7 +216,26 @@ def find_defects(
     for rank, index in enumerate(order):
         labels[members[index]] = rank
     return Defects(
-        tuple(defects[i] for i in order), tuple(branches), reported, significance, labels
+        tuple(defects[i] for i in order), tuple(branches), reported, significance, labels, basis
+    )
+
+
+def _basis(wall: WallMap, defined, significance: float, area: float, reported: float) -> str:
+    """What the threshold `reported` (m) came from, in words with figures in mm."""
+    if not defined.any():
+        return "no cell of the wall is judged: too few samples, or all near an edge"
+    noise = 1000 * float(np.median(wall.noise[defined]))
+    error = 1000 * float(np.median(wall.error[defined]))
+    if not wall.independent:
+        return (
+            f"{significance:.1f} x the mesh's roughness about the sections, {noise:.2f} mm "
+            f"(no points given): {1000 * reported:.2f} mm"
+        )
+    return (
+        f"{significance:.1f} standard errors (so that noise alone makes {FALSE_ALARMS} false "
+        f"regions over the {area:.1f} m2 judged) of a cell's mean, {error:.2f} mm: the "
+        f"points' noise about the local wall, {noise:.2f} mm, over the points in a cell "
+        f"(medians over the wall): {1000 * reported:.2f} mm"
     )
 
 
@@ -289,6 +319,8 @@ def _defect(sign, wall: WallMap, cells, area, pipe: Pipe, fit: _BumpFit) -> Defe
         clock_end=float(clock_end),
         width=float(width),
         area=float(area),
+        depth_percent=100.0 * abs(depth) / (2.0 * pipe.radius),
+        assess=bool(sign < 0 and 100.0 * abs(depth) / (2.0 * pipe.radius) > ASSESSED_DENT),
     )
 
 

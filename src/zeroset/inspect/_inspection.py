@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -12,10 +12,10 @@ from ..errors import InputError
 from ..evaluate import sample_surface
 from ..topology import face_area_vectors
 from ..types import Mesh
-from ._centreline import Pipe, beam_steps, fit_pipe
+from ._centreline import Pipe, beam_steps, check_stations, fit_pipe
 from ._defects import Defects, find_defects
 from ._frame import UP
-from ._joints import Joint
+from ._joints import Joint, find_joints, joint_spans
 from ._measure import Ovality, deviation, ovality
 from ._unrolled import KERNEL, WallMap, unroll
 
@@ -113,7 +113,9 @@ def inspect_pipe(
         if samples is None:
             raise InputError("viewpoints go with the points they were scanned from")
         viewpoints = as_viewpoints(viewpoints, samples.shape[0])
-    pipe = fit_pipe(mesh, samples, nominal_diameter=nominal_diameter, up=up, rng=rng)
+    pipe = fit_pipe(
+        mesh, samples, viewpoints=viewpoints, nominal_diameter=nominal_diameter, up=up, rng=rng
+    )
     timings["centreline"] = time.perf_counter() - start
     start = time.perf_counter()
     wall_samples = samples
@@ -139,6 +141,14 @@ def inspect_pipe(
         located=located,
         beams=beams,
     )
+    timings["wall map"] = time.perf_counter() - start
+    start = time.perf_counter()
+    noise = float(np.nanmedian(wall.noise)) if np.isfinite(wall.noise).any() else 0.0
+    joints = find_joints(pipe, found_ovality, wall, located)
+    spans = joint_spans(joints, pipe, wall.kernel)
+    pipe = replace(pipe, unreliable=check_stations(pipe, located, noise, excused=spans))
+    timings["joints and checks"] = time.perf_counter() - start
+    start = time.perf_counter()
     defects = find_defects(
         wall,
         pipe,
@@ -147,8 +157,9 @@ def inspect_pipe(
         threshold=threshold,
         located=located,
         beams=beams,
+        excluded=spans + [(u.axial_start, u.axial_end) for u in pipe.unreliable],
     )
     timings["defects"] = time.perf_counter() - start
     return Inspection(
-        pipe, found_ovality, wall, defects, vertex_deviation, point_deviation, timings=timings
+        pipe, found_ovality, wall, defects, vertex_deviation, point_deviation, joints, timings
     )

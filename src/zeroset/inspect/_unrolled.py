@@ -18,6 +18,9 @@ KERNEL = 0.04
 CELLS_PER_KERNEL = 2.0
 #: A sample further than this share of the radius from the nominal wall is off the wall.
 OFF_WALL = 0.3
+#: A sample's residual about the smoothed wall counts towards the local noise up to this
+#: many robust deviations of the whole wall's (a Gaussian's variance loses 0.3 % to it).
+CLIP = 4.0
 #: A cell's spread is at least this share of the wall's robust standard deviation (a few
 #: samples can agree by chance).
 LOCAL_FLOOR = 0.5
@@ -42,6 +45,10 @@ class WallMap:
         `Ovality.section_at`): what defects are judged on.
     error : (A, C) float64
         Standard error of `residual`, metres.
+    noise : (A, C) float64
+        The samples' spread about the local surface, metres: with scan points, their
+        residuals about the smoothed wall (the range noise as the radius sees it); with a
+        mesh's samples, their roughness about the sections.
     off_wall : (A, C) float64
         Smoothed share of the samples more than `OFF_WALL` radii outside the wall.
     kernel : float
@@ -56,12 +63,14 @@ class WallMap:
     deviation: np.ndarray
     residual: np.ndarray
     error: np.ndarray
+    noise: np.ndarray
     off_wall: np.ndarray
     kernel: float
     independent: bool
 
     def __post_init__(self) -> None:
-        for name in ("axial_edges", "clock_edges", "deviation", "residual", "error", "off_wall"):
+        for name in ("axial_edges", "clock_edges", "deviation", "residual", "error", "noise",
+                     "off_wall"):  # fmt: skip
             getattr(self, name).flags.writeable = False
 
     def cells(self, axial: np.ndarray, clock: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -88,10 +97,11 @@ def unroll(
 
     Each cell holds the kernel-weighted mean of the samples' deviations, and the
     standard error of that mean. When the samples are `independent` (scan points), the
-    error is the local spread (at least `LOCAL_FLOOR` of the wall's) over the square root
-    of the effective number of samples;
-    when they are not (a mesh's vertices, smooth by construction, whose errors are
-    neighbours' errors too) it is the robust spread of all the samples' residuals.
+    error is the points' own noise about the local surface (`_local_noise`: their
+    residuals about the smoothed wall, which follows joints, ovality and dents, so real
+    geometry does not count as noise) over the square root of the effective number of
+    samples; when they are not (a mesh's vertices, smooth by construction, whose errors
+    are neighbours' errors too) it is the robust spread of all the samples' residuals.
     `kernel` is the kernel's standard deviation in metres, default `KERNEL` radii;
     `located` is ``pipe.locate(samples)`` when already computed.
 
@@ -152,18 +162,55 @@ def _map(pipe, axial, clock, deviation, residual, kernel, independent) -> WallMa
     with np.errstate(invalid="ignore", divide="ignore"):
         mean_dev = blur(grid(deviation, on)) / count
         mean = blur(grid(residual, on)) / count
-        noise = 1.4826 * np.median(np.abs(residual[on])) if on.any() else 0.0
-        spread = blur(grid(residual**2, on)) / count - mean**2
-        spread = np.maximum(spread, (LOCAL_FLOOR * noise) ** 2)
         squares = blur(grid(ones, on), 1.0 / np.sqrt(2.0)) / (4.0 * np.pi * sigma[0] * sigma[1])
         effective = count**2 / squares
-        if independent:
-            error = np.sqrt(spread / effective)
-        else:
-            error = np.full_like(mean, noise)
         share = blur(grid(ones, off)) / total
+    if independent:
+        surface = _bilinear(
+            mean, (axial - pipe.axial[0]) / cell - 0.5, clock / 360.0 * n_clock - 0.5
+        )
+        noise = _local_noise(residual - surface, on, grid, blur, effective)
+        error = np.sqrt(noise**2 / effective)
+    else:  # a mesh's samples: their roughness about the sections, all over the wall
+        spread = 1.4826 * np.median(np.abs(residual[on])) if on.any() else 0.0
+        noise = np.full_like(mean, spread)
+        error = noise.copy()
     undefined = ~(effective >= MIN_SAMPLES)
-    for value in (mean_dev, mean, error):
+    for value in (mean_dev, mean, error, noise):
         value[undefined] = np.nan
     share[~(total > 0)] = 0.0
-    return WallMap(axial_edges, clock_edges, mean_dev, mean, error, share, kernel, independent)
+    return WallMap(
+        axial_edges, clock_edges, mean_dev, mean, error, noise, share, kernel, independent
+    )
+
+
+def _bilinear(values: np.ndarray, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+    """(N,) `values` (A, C) interpolated bilinearly at fractional `rows` and `cols` (cell
+    centres at whole numbers), the columns wrapping round the clock; NaN next to NaN."""
+    padded = np.concatenate([values[:, -1:], values, values[:, :1]], axis=1)
+    return ndimage.map_coordinates(
+        padded, [rows, cols + 1.0], order=1, mode="nearest", cval=np.nan, prefilter=False
+    )
+
+
+def _local_noise(about, on, grid, blur, effective) -> np.ndarray:
+    """(A, C) standard deviation of the samples' residuals `about` the smoothed wall
+    where each lies (the local surface), kernel-weighted per cell: the range noise as the
+    wall's radius sees it, which real geometry (joints, ovality, dents, deposits) does not
+    raise, since the smoothed wall follows it.
+
+    Residuals beyond `CLIP` robust deviations of the whole wall (a joint's gap, narrower
+    than the kernel; an outlier) are clipped there, and the spread is at least
+    `LOCAL_FLOOR` of the wall's (a few samples can agree by chance). A sample weighs in
+    its own cell's mean, which shrinks its residual's variance by about ``1 - 1 /
+    effective``; that is undone.
+    """
+    usable = on & np.isfinite(about)
+    if not usable.any():
+        return np.full(effective.shape, np.nan)
+    overall = 1.4826 * float(np.median(np.abs(about[usable])))
+    squared = np.where(usable, np.minimum(about**2, (CLIP * overall) ** 2), 0.0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        variance = blur(grid(squared, usable)) / blur(grid(np.ones_like(about), usable))
+        variance /= np.clip(1.0 - 1.0 / effective, 0.5, 1.0)
+    return np.sqrt(np.maximum(variance, (LOCAL_FLOOR * overall) ** 2))
