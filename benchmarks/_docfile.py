@@ -24,6 +24,7 @@ SECTIONS = (
     "scans",
     "registered",
     "inspection",
+    "runs",
     "peers",
     "holes",
 )

@@ -33,7 +33,7 @@ CURVATURE_SAMPLES = 20_000
 MAX_FIT_VERTICES = 100_000
 #: Station length, knot spacing and the centreline's sampling, as shares of the radius.
 STATION = 0.1
-KNOT = 0.25
+KNOT = 0.5
 SAMPLING = 0.02
 #: At most this many rounds of station fits move the centreline onto the sections'
 #: centres; they stop once it moves less than `SETTLED` radii.
@@ -337,9 +337,10 @@ def station_fits(pipe: Pipe, located, *, step: float | None = None, oval: bool =
     }
 
 
-def check_stations(pipe: Pipe, located, noise: float, *, excused=()) -> tuple[Unreliable, ...]:
+def check_stations(pipe: Pipe, located, noise, *, excused=()) -> tuple[Unreliable, ...]:
     """The stretches of `pipe` whose sections do not explain their wall: `located` is
-    ``pipe.locate(x)`` of the points x, `noise` (m) their spread about the local wall.
+    ``pipe.locate(x)`` of the points x, and ``noise(axial)`` their spread about the local
+    wall (m) at axial positions (m), such as `WallMap.noise_along`.
 
     A station (`station_fits`) is unreliable where its fitted section leaves a robust
     spread of residuals above `SPREAD` times the `noise` in most sectors of angle (a dent
@@ -362,10 +363,11 @@ def check_stations(pipe: Pipe, located, noise: float, *, excused=()) -> tuple[Un
     step = axial[1] - axial[0] if axial.size > 1 else pipe.length
     inside = (axial > 0.0) & (axial < pipe.length)
     reason = np.full(axial.size, "", dtype=object)
-    spread = good & (scale > SPREAD * noise)
+    local = noise(axial)
+    spread = good & (scale > SPREAD * local)
     reason[spread] = [
-        f"its section leaves residuals of {1000 * v:.1f} mm, against noise of {1000 * noise:.1f} mm"
-        for v in scale[spread]
+        f"its section leaves residuals of {1000 * v:.1f} mm, against noise of {1000 * n:.1f} mm"
+        for v, n in zip(scale[spread], local[spread], strict=True)
     ]
     off = good & ~spread & (np.hypot(coef[:, 1], coef[:, 2]) > OFF_CENTRE * pipe.radius)
     reason[off] = "the centreline does not follow its section's centre"
@@ -407,12 +409,21 @@ def _weighted_fits(basis, values, weight, station, n_stations, fitted) -> np.nda
 
 
 def _station_mad(values, station, keep, n_stations) -> np.ndarray:
-    """(K,) median of `values` per station over `keep`, times 1.4826 (a robust sigma)."""
-    order = np.argsort(station[keep], kind="stable")
-    grouped = np.split(
-        values[keep][order], np.cumsum(np.bincount(station[keep], minlength=n_stations))[:-1]
+    """(K,) median of `values` per station over `keep`, times 1.4826 (a robust sigma);
+    inf for a station without values."""
+    values, station = values[keep], station[keep]
+    span = float(values.max() - values.min()) if values.size else 0.0
+    order = np.argsort(
+        station + 0.5 * (values - values.min()) / (span + 1e-300) if span else station
     )
-    return 1.4826 * np.array([np.median(g) if g.size else np.inf for g in grouped])
+    count = np.bincount(station, minlength=n_stations)
+    start = np.r_[0, np.cumsum(count)[:-1]]
+    held = count > 0
+    low = order[start[held] + (count[held] - 1) // 2]
+    high = order[start[held] + count[held] // 2]
+    median = np.full(n_stations, np.inf)
+    median[held] = 0.5 * (values[low] + values[high])
+    return 1.4826 * median
 
 
 def _wall_curvature(mesh: Mesh, normals: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -613,6 +624,21 @@ def _smooth(x: np.ndarray, y: np.ndarray, knot: float):
     return interpolate.make_lsq_spline(x, y, knots, k=3)
 
 
+def _without_ovality(located, sections: dict):
+    """`located` (axial, clock, distance) with each distance less the second harmonic
+    (the ovality) of the complete sections among `sections` (`station_fits`),
+    interpolated along the pipe: what a circle fits where the data do not go round, and
+    the ovality would otherwise pull its centre towards the side seen."""
+    complete = sections["complete"]
+    if not complete.any():
+        return located
+    axial, clock, distance = located
+    a2, b2 = (np.interp(axial, sections["axial"][complete], sections["coef"][complete, i])
+              for i in (3, 4))  # fmt: skip
+    twice = np.radians(2.0 * clock)
+    return axial, clock, distance - a2 * np.cos(twice) - b2 * np.sin(twice)
+
+
 def _data_ends(pipe: Pipe, wall: np.ndarray, located, step: float) -> tuple[float, float]:
     """Axial positions (m) where the data start and stop: the ends of the stretches of
     `step` metres holding two points or more of the `wall` (N, 3) near it, and `THIN` of
@@ -644,7 +670,8 @@ def _data_ends(pipe: Pipe, wall: np.ndarray, located, step: float) -> tuple[floa
 def _refit(pipe: Pipe, wall: np.ndarray, up, guide: np.ndarray) -> Pipe:
     """Move the centreline onto the centres of the sections fitted to `wall` per station:
     circle and ovality where the data go all round, a circle only where they do not (beside
-    an opening a second harmonic would trade off with the centre).
+    an opening a second harmonic would trade off with the centre), fitted to the
+    distances less the ovality of the complete sections around (`_without_ovality`).
 
     Where no station is fitted for two stations' length (the thin, one-sided data near
     the scan's ends), the centreline follows the `guide` (K, 3), the axis points it
@@ -652,8 +679,8 @@ def _refit(pipe: Pipe, wall: np.ndarray, up, guide: np.ndarray) -> Pipe:
     bend, that would leave the pipe.
     """
     located = pipe.locate(wall)
-    circles = station_fits(pipe, located, oval=False)
     sections = station_fits(pipe, located)
+    circles = station_fits(pipe, _without_ovality(located, sections), oval=False)
     coef = np.where(sections["complete"][:, None], sections["coef"][:, :3], circles["coef"])
     good = circles["fitted"] | sections["complete"]
     if np.count_nonzero(good) < 4:

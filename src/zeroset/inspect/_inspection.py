@@ -143,10 +143,9 @@ def inspect_pipe(
     )
     timings["wall map"] = time.perf_counter() - start
     start = time.perf_counter()
-    noise = float(np.nanmedian(wall.noise)) if np.isfinite(wall.noise).any() else 0.0
-    joints = find_joints(pipe, found_ovality, wall, located)
+    joints = find_joints(pipe, found_ovality, wall, located, beams)
     spans = joint_spans(joints, pipe, wall.kernel)
-    pipe = replace(pipe, unreliable=check_stations(pipe, located, noise, excused=spans))
+    pipe = replace(pipe, unreliable=check_stations(pipe, located, wall.noise_along, excused=spans))
     timings["joints and checks"] = time.perf_counter() - start
     start = time.perf_counter()
     defects = find_defects(
@@ -157,7 +156,11 @@ def inspect_pipe(
         threshold=threshold,
         located=located,
         beams=beams,
-        excluded=spans + [(u.axial_start, u.axial_end) for u in pipe.unreliable],
+        excluded=spans
+        + [
+            (u.axial_start - 3 * wall.kernel, u.axial_end + 3 * wall.kernel)
+            for u in pipe.unreliable
+        ],
     )
     timings["defects"] = time.perf_counter() - start
     return Inspection(

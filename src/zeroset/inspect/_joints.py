@@ -6,7 +6,7 @@ import warnings
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import ndimage, special
+from scipy import ndimage, optimize, special
 
 from ._centreline import SECTORS, Pipe, station_fits
 from ._defects import BRANCH
@@ -30,11 +30,14 @@ FALSE_ALARMS = 0.05
 ALL_ROUND = 0.75
 #: A bead's width, as a share of the radius, for the stretch of wall it takes.
 BEAD_WIDTH = 0.1
-#: Offsets: the reach of the quadratics each side, the gap left next to the boundary,
-#: and the smallest step reported, as shares of the radius.
-OFFSET_REACH = 1.0
-OFFSET_GAP = 0.5
+#: Offsets: the reach each side of a boundary over which the sections' centres are
+#: fitted, the gap next to it left out (the sections there, square to a centreline that
+#: turns to follow the step, see both sides), and the smallest step reported, as shares
+#: of the radius; the fewest stations each side.
+OFFSET_REACH = 0.75
+OFFSET_GAP = 0.25
 MIN_OFFSET = 0.005
+OFFSET_STATIONS = 4
 
 
 @dataclass(frozen=True)
@@ -68,7 +71,9 @@ class Joint:
     depth: float = float("nan")
 
 
-def find_joints(pipe: Pipe, ovality: Ovality, wall: WallMap, located) -> tuple[Joint, ...]:
+def find_joints(
+    pipe: Pipe, ovality: Ovality, wall: WallMap, located, beams=None
+) -> tuple[Joint, ...]:
     """Find the ring features of a pipe's wall: gaps, beads and offsets, by axial position.
 
     `located` is ``pipe.locate(x)`` of the scan's points (or samples of the mesh), and
@@ -79,25 +84,33 @@ def find_joints(pipe: Pipe, ovality: Ovality, wall: WallMap, located) -> tuple[J
     **Gaps and beads** change the wall all round at once. The points' residuals from
     their station's section (`Ovality.section_at`) are averaged in rings `RING` radii
     long; a ring whose mean leaves the running median of the rings around it (`BASELINE`
-    radii each side) by more than z of its standard errors (``noise / sqrt(n)``, z so
+    radii each side) by more than z of its standard errors (the noise there over
+    ``sqrt(n)``, z so
     that noise alone makes `FALSE_ALARMS` such rings over the run) starts a feature, and
     the neighbouring rings beyond half of it join it. A feature counts only where the
     residuals leave the wall the same way in at least `ALL_ROUND` of the sectors its
     points cover, which a dent, a deposit or a branch (one side of the pipe) does not.
-    Outward it is a gap: its depth is the deepest ring's excess, its width the share of
-    the recess the points there see (each point's excess over the depth, clipped to [0,
-    1]) over the points per metre of wall around it. Inward it is a bead: its size is
-    the largest excess of three rings running.
+    Outward it is a gap: a recess, a box in the axial position blurred by the points'
+    axial scatter (`_gap`), is fitted to the rings' excess for its position, width and
+    depth. With the scanner's `beams` (`beam_steps` of the points) the scatter is the
+    range noise along the beams' axial component, which smears a narrow gap over
+    centimetres; without, only the rings' own length. Inward it is a bead: its size is
+    the largest excess of three rings running. Rings within an offset's reach are
+    part of the offset (its step leaves the rings' means as it crosses them).
 
-    **Offsets** move the pipe beyond the joint sideways, for good. The centres of the
-    sections (`station_fits`), in the world, are fitted with quadratics on both sides of
-    each station boundary over `OFFSET_REACH` radii, leaving out `OFFSET_GAP` radii next
-    to it (there a dent pulls the sections' centres, and the centreline smooths the
-    step); where the two meet the boundary apart by more than z of their standard errors,
-    and more than `MIN_OFFSET` radii, the largest such step is an offset towards the clock
-    of the difference. It lies at the station boundary within the gap that puts the
-    fewest section centres on the wrong side's quadratic. Quadratics follow a bend's arc
-    on either side, so the boundary between a straight leg and a bend shows no step.
+    **Offsets** move the pipe beyond the joint sideways: the centreline steps. At each
+    boundary between stations, the centres of the sections (`station_fits`), in the
+    world, from `OFFSET_GAP` to `OFFSET_REACH` radii of it are fitted by a cubic in the
+    axial position and a step at the boundary; where the step exceeds z of its standard
+    error (scaled by the centres' scatter about
+    the fit where that exceeds their own errors: the sections of a bend seen obliquely
+    from afar), and `MIN_OFFSET` radii, the largest is an offset towards the clock of
+    the step, at the axial position where the centres cross half of it, if the outer
+    halves of both sides show at least half of it too (`_lasting`). Only straight
+    stretches are judged, where the centreline's mean curvature over the fit stays below
+    ``MIN_OFFSET r / OFFSET_REACH^2`` (below that, where a bend meets a leg, the cubic
+    misses the centres by less than half the smallest step reported); offsets in bends
+    are not.
     """
     axial, clock, distance = located
     keep = np.isfinite(axial)
@@ -105,13 +118,21 @@ def find_joints(pipe: Pipe, ovality: Ovality, wall: WallMap, located) -> tuple[J
     residual = distance[keep] - ovality.section_at(axial, clock, pipe.radius)
     on_wall = np.abs(residual) < OFF_WALL * pipe.radius
     axial, clock, residual = axial[on_wall], clock[on_wall], residual[on_wall]
-    noise = float(np.nanmedian(wall.noise)) if np.isfinite(wall.noise).any() else 0.0
+    blur = np.zeros_like(axial)
+    if beams is not None:  # range noise along oblique beams moves points along the axis
+        s_a, _, s_r = beams[keep][on_wall].T
+        blur = np.nan_to_num(wall.noise_along(axial) * np.abs(s_a) / np.maximum(np.abs(s_r), 0.2))
     whole = np.isfinite(wall.residual).all(axis=1) & (wall.off_wall < BRANCH).all(axis=1)
     reach = int(np.ceil(BASELINE * pipe.radius / (wall.axial_edges[1] - wall.axial_edges[0])))
     whole = ~ndimage.binary_dilation(~whole, iterations=reach, border_value=1)
-    found = list(_rings(pipe, axial, clock, residual, noise, wall, whole))
-    found += _offsets(pipe, located, noise)
-    return tuple(sorted(found, key=lambda j: j.axial))
+    offsets = _offsets(pipe, located, wall.noise_along)
+    spans = joint_spans(offsets, pipe, wall.kernel)
+    rings = [
+        ring
+        for ring in _rings(pipe, axial, clock, residual, blur, wall, whole)
+        if not any(start <= ring.axial <= end for start, end in spans)
+    ]
+    return tuple(sorted(offsets + rings, key=lambda j: j.axial))
 
 
 def joint_spans(joints, pipe: Pipe, kernel: float) -> list[tuple[float, float]]:
@@ -127,7 +148,7 @@ def joint_spans(joints, pipe: Pipe, kernel: float) -> list[tuple[float, float]]:
     return spans
 
 
-def _rings(pipe: Pipe, axial, clock, residual, noise: float, wall: WallMap, whole):
+def _rings(pipe: Pipe, axial, clock, residual, blur, wall: WallMap, whole):
     """Yield the gaps and beads among the rings of the wall (see `find_joints`): those
     whose map rows are `whole` (A,) bool."""
     step = RING * pipe.radius
@@ -141,12 +162,13 @@ def _rings(pipe: Pipe, axial, clock, residual, noise: float, wall: WallMap, whol
     half = max(1, int(round(BASELINE / RING)))
     baseline = _running_median(mean, half)
     excess = mean - baseline
-    error = noise / np.sqrt(np.maximum(count, 1))
+    error = wall.noise_along(start + step * (np.arange(n_rings) + 0.5)) / np.sqrt(
+        np.maximum(count, 1)
+    )
     error *= _dispersion(excess / error)
     z = float(special.ndtri(1.0 - FALSE_ALARMS / (2.0 * n_rings)))
     rows, _ = wall.cells(start + step * (np.arange(n_rings) + 0.5), np.zeros(n_rings))
     strong = (np.abs(np.nan_to_num(excess)) > z * error) & (rows >= 0) & whole[rows]
-    density = count.sum() / (n_rings * step)  # points per metre of wall
     sector = np.minimum((clock / (360.0 / SECTORS)).astype(np.int64), SECTORS - 1)
     for seed in np.flatnonzero(strong):
         if not strong[seed]:
@@ -165,17 +187,46 @@ def _rings(pipe: Pipe, axial, clock, residual, noise: float, wall: WallMap, whol
         centre = start + step * (0.5 + np.average(np.arange(lo, hi + 1), weights=np.clip(
             np.nan_to_num(sign * excess[lo : hi + 1]), 1e-12, None)))  # fmt: skip
         if sign > 0:
-            depth = float(excess[peak])
-            seen = np.clip((residual[members] - baseline[index[members]]) / depth, 0.0, 1.0)
-            width = float(seen.sum() / density)
-            uncertainty = float(error[peak] / depth * width + step / np.sqrt(12))
-            yield Joint("gap", float(centre), width, uncertainty, depth=depth)
+            window = np.abs(np.arange(n_rings) - peak) <= half
+            window &= np.isfinite(excess)
+            spread = float(np.sqrt(np.mean(blur[members] ** 2)))
+            middle = start + step * (np.arange(n_rings)[window] + 0.5)
+            gap = _gap(middle, excess[window], error[window], centre, spread, step)
+            if gap is not None:
+                yield gap
             continue
         three = np.convolve(np.nan_to_num(-excess), np.ones(3) / 3.0, mode="same")
         best = lo + int(np.argmax(three[lo : hi + 1]))
         uncertainty = float(np.sqrt(np.sum(error[max(best - 1, 0) : best + 2] ** 2)) / 3.0)
         if three[best] > z * uncertainty:
             yield Joint("bead", float(centre), float(three[best]), uncertainty)
+
+
+def _gap(axial, excess, error, centre: float, blur: float, step: float) -> Joint | None:
+    """A gap fitted to the rings' `excess` (m) at `axial` (m), with standard `error`: a
+    recess of depth d and width w centred at a, ``d (Phi((s - a + w/2) / b) - Phi((s - a
+    - w/2) / b))``, the box blurred by the axial scatter b of the points (`blur`, from
+    the range noise along oblique beams, and the rings' length); None where it does not
+    converge to a recess."""
+    b = float(np.hypot(blur, step / np.sqrt(12.0)))
+
+    def profile(q):
+        a, w, d = q
+        return d * (
+            special.ndtr((axial - a + 0.5 * w) / b) - special.ndtr((axial - a - 0.5 * w) / b)
+        )
+
+    peak = float(excess.max())
+    area = float(np.clip(excess, 0.0, None).sum() * step)
+    start = np.array([centre, max(area / max(peak, 1e-9), step), peak])
+    found = optimize.least_squares(lambda q: (profile(q) - excess) / error, start)
+    a, w, d = found.x
+    if not (found.success and w > 0 and d > 0 and abs(a - centre) < 0.5 * (axial[-1] - axial[0])):
+        return None
+    covariance = np.linalg.pinv(found.jac.T @ found.jac) * max(
+        float(found.fun @ found.fun) / max(excess.size - 3, 1), 1.0
+    )
+    return Joint("gap", float(a), float(w), float(np.sqrt(covariance[1, 1])), depth=float(d))
 
 
 def _all_round(sector: np.ndarray, excess: np.ndarray) -> bool:
@@ -187,8 +238,9 @@ def _all_round(sector: np.ndarray, excess: np.ndarray) -> bool:
     return bool(covered.any() and np.mean(mean[covered] > 0) >= ALL_ROUND)
 
 
-def _offsets(pipe: Pipe, located, noise: float) -> list[Joint]:
-    """The offsets among the station boundaries of the pipe (see `find_joints`)."""
+def _offsets(pipe: Pipe, located, noise) -> list[Joint]:
+    """The offsets among the station boundaries of the pipe (see `find_joints`); `noise`
+    gives the points' noise (m) at axial positions (m)."""
     fits = station_fits(pipe, located, oval=False)
     good = fits["fitted"] & (fits["axial"] > 0.0) & (fits["axial"] < pipe.length)
     along = fits["axial"][good]
@@ -198,18 +250,36 @@ def _offsets(pipe: Pipe, located, noise: float) -> list[Joint]:
     right = np.cross(tangent, up)
     coef = fits["coef"][good]
     centres = centre + coef[:, 1:2] * up + coef[:, 2:3] * right
-    sigma = noise * np.sqrt(2.0 / np.maximum(fits["count"][good], 1))  # a circle's centre
-    reach, gap = OFFSET_REACH * pipe.radius, OFFSET_GAP * pipe.radius
+    sigma = noise(along) * np.sqrt(2.0 / np.maximum(fits["count"][good], 1))  # a centre's
+    reach = OFFSET_REACH * pipe.radius
     bounds = 0.5 * (along[:-1] + along[1:])
-    sides = [_side_fits(along, centres, sigma, at, gap, reach) for at in bounds]
-    judged = np.array([side is not None for side in sides])
+    jumps, errors = np.zeros((bounds.size, 3)), np.full(bounds.size, np.inf)
+    models = [None] * bounds.size
+    # where the centreline bends, a cubic across the gap misses by up to curvature *
+    # reach^2 / 2: judge only where that stays below half the smallest step reported
+    turn = _mean_curvature(pipe, bounds, reach)
+    for k, at in enumerate(bounds):
+        gap = np.abs(along - at)
+        near = (gap <= reach) & (gap >= OFFSET_GAP * pipe.radius)
+        if turn[k] > MIN_OFFSET * pipe.radius / reach**2:
+            continue
+        before, after = np.count_nonzero(near & (along < at)), np.count_nonzero(near & (along > at))
+        if min(before, after) < OFFSET_STATIONS:
+            continue
+        x = (along[near] - at) / reach
+        basis = np.stack([np.ones_like(x), x, x * x, x**3, (x > 0).astype(np.float64)], 1)
+        weight = 1.0 / sigma[near] ** 2
+        inverse = np.linalg.pinv(basis.T @ (basis * weight[:, None]))
+        q = inverse @ (basis * weight[:, None]).T @ centres[near]
+        # the centres' scatter about the fit, where it exceeds their errors, is error too
+        misfit = np.sum(weight[:, None] * (centres[near] - basis @ q) ** 2)
+        scatter = misfit / (3 * (x.size - basis.shape[1]))
+        jumps[k] = q[-1] - (q[-1] @ tangent[k]) * tangent[k]
+        errors[k] = np.sqrt(inverse[-1, -1] * max(scatter, 1.0))
+        models[k] = q
+    judged = np.isfinite(errors)
     if not judged.any():
         return []
-    jumps, errors = np.zeros((bounds.size, 3)), np.full(bounds.size, np.inf)
-    for k in np.flatnonzero(judged):
-        (before, var_b), (after, var_a) = ((q[0], inverse[0, 0]) for q, inverse in sides[k])
-        jumps[k] = after - before - ((after - before) @ tangent[k]) * tangent[k]
-        errors[k] = np.sqrt(var_b + var_a)
     scores = np.linalg.norm(jumps, axis=1) / errors
     # a step's size over its error is Rayleigh under noise alone: its median is 1.18
     scale = max(float(np.median(scores[judged])) / np.sqrt(2.0 * np.log(2.0)), 1.0)
@@ -219,50 +289,56 @@ def _offsets(pipe: Pipe, located, noise: float) -> list[Joint]:
     found = []
     while strong.any():
         k = int(np.argmax(np.where(strong, scores, -np.inf)))
-        strong &= np.abs(bounds - bounds[k]) > reach + gap
-        at = _split(along, centres, bounds[k], gap, sides[k])
+        strong &= np.abs(bounds - bounds[k]) > reach
+        if not _lasting(along, centres, sigma, bounds[k], reach, jumps[k]):
+            continue
         size = float(np.linalg.norm(jumps[k]))
         direction = jumps[k] / size
         clock = float(clock_angles(direction[None], tangent[k][None], up[k][None])[0])
+        at = _halfway(along, centres, bounds[k], reach, models[k], direction)
         found.append(Joint("offset", at, size, float(errors[k]), clock=clock))
     return found
 
 
-def _side_fits(along, centres, sigma, at: float, gap: float, reach: float):
-    """Weighted quadratic fits of the section `centres` (K, 3) at positions `along` (K,)
-    before and after `at`, over `reach` metres beyond a `gap` each side: for each side
-    the (3, 3) coefficients in powers of (along - at), and the inverse normal matrix;
-    None where a side holds fewer than four stations."""
-    fits = []
-    for side in (along < at - gap, along > at + gap):
-        chosen = side & (np.abs(along - at) <= reach + gap)
-        if np.count_nonzero(chosen) < 4:
-            return None
-        x = along[chosen] - at
-        basis = np.stack([np.ones_like(x), x, x * x], 1)
-        weight = 1.0 / sigma[chosen] ** 2
-        inverse = np.linalg.pinv(basis.T @ (basis * weight[:, None]))
-        fits.append((inverse @ (basis * weight[:, None]).T @ centres[chosen], inverse))
-    return fits
+def _lasting(along, centres, sigma, at: float, reach: float, jump) -> bool:
+    """Whether the step `jump` (3,) at `at` (m) is there in the outer halves of both sides
+    too, a line each side and a step (at least half of it, the same way): an offset
+    moves the pipe for good, a dent's flank in one window only pulls a few centres."""
+    gap = np.abs(along - at)
+    outer = (gap >= 0.5 * (reach + OFFSET_GAP * reach / OFFSET_REACH)) & (gap <= reach)
+    if min(np.count_nonzero(outer & (along < at)), np.count_nonzero(outer & (along > at))) < 2:
+        return False
+    x = (along[outer] - at) / reach
+    basis = np.stack([np.ones_like(x), x, (x > 0).astype(np.float64)], 1)
+    weight = 1.0 / sigma[outer] ** 2
+    q = np.linalg.pinv(basis.T @ (basis * weight[:, None])) @ (basis * weight[:, None]).T
+    step = (q @ centres[outer])[-1]
+    return bool(step @ jump >= 0.5 * (jump @ jump))
 
 
-def _split(along, centres, at: float, gap: float, sides) -> float:
-    """Where, within `gap` metres of `at`, the section centres (K, 3) at `along` (K,)
-    leave the quadratic of the side before for that of the side after (`sides`, from
-    `_side_fits`): the station boundary that puts the fewest of them on the wrong side."""
-    near = np.flatnonzero(np.abs(along - at) <= gap)
-    if near.size == 0:
+def _mean_curvature(pipe: Pipe, at: np.ndarray, reach: float) -> np.ndarray:
+    """(K,) the centreline's mean curvature (1/m) over `reach` metres each side of the
+    axial positions `at` (K,): the angle between its tangents there over the length. A
+    step's S-turn, and the noise of the fit, cancel out in it; a bend does not."""
+    before, after = pipe._at(at - reach)[1], pipe._at(at + reach)[1]
+    angle = np.arccos(np.clip(np.einsum("ij,ij->i", before, after), -1.0, 1.0))
+    return angle / (2.0 * reach)
+
+
+def _halfway(along, centres, at: float, reach: float, q, direction) -> float:
+    """Where, within `reach` of the boundary `at` (m), the section `centres` (K, 3) at
+    `along` (K,) cross half of the step of the fitted model `q` (cubic, then step) along
+    its `direction`: the joint's position, though the stations astride it see both sides."""
+    near = np.abs(along - at) <= reach
+    x = (along[near] - at) / reach
+    cubic = np.stack([np.ones_like(x), x, x * x, x**3], 1) @ q[:4]
+    share = (centres[near] - cubic) @ direction / (q[-1] @ direction)
+    crossing = np.flatnonzero((share[:-1] < 0.5) & (share[1:] >= 0.5))
+    if crossing.size == 0:
         return float(at)
-    x = along[near] - at
-    powers = np.stack([np.ones_like(x), x, x * x], 1)
-    misfit = [np.linalg.norm(centres[near] - powers @ q, axis=1) for q, _ in sides]
-    # cost of each split: stations before it judged by the first side, after by the second
-    cost = np.r_[0.0, np.cumsum(misfit[0])] + np.r_[np.cumsum(misfit[1][::-1])[::-1], 0.0]
-    split = int(np.argmin(cost))
-    edges = np.r_[along[near[0]] - 0.5 * (along[near[1]] - along[near[0]]) if near.size > 1
-                  else along[near[0]], 0.5 * (along[near[:-1]] + along[near[1:]]),
-                  along[near[-1]]]  # fmt: skip
-    return float(edges[min(split, edges.size - 1)])
+    i = crossing[np.argmin(np.abs(along[near][crossing] - at))]
+    t = (0.5 - share[i]) / (share[i + 1] - share[i])
+    return float(along[near][i] + t * (along[near][i + 1] - along[near][i]))
 
 
 def _dispersion(standardized: np.ndarray) -> float:

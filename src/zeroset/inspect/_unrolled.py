@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -72,6 +73,19 @@ class WallMap:
         for name in ("axial_edges", "clock_edges", "deviation", "residual", "error", "noise",
                      "off_wall"):  # fmt: skip
             getattr(self, name).flags.writeable = False
+
+    def noise_along(self, axial) -> np.ndarray:
+        """(N,) the samples' noise about the local wall (m) at axial positions `axial`
+        (N,) (m): the median round the pipe of `noise`'s rows, interpolated (its scanner's
+        range noise along the radius changes with the distance from the scanner)."""
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)  # a row without data
+            rows = np.nanmedian(self.noise, axis=1)
+        middle = 0.5 * (self.axial_edges[:-1] + self.axial_edges[1:])
+        known = np.isfinite(rows)
+        if not known.any():
+            return np.full(np.shape(axial), np.nan)
+        return np.interp(axial, middle[known], rows[known])
 
     def cells(self, axial: np.ndarray, clock: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Row and column of the cells holding `axial` (m) and `clock` (degrees); -1 rows
