@@ -8,6 +8,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 from scipy import ndimage
+from scipy.spatial import cKDTree
 
 from zeroset import io, reconstruct
 from zeroset.cli import main
@@ -40,11 +41,15 @@ from zeroset.inspect._pictures import (
 )
 from zeroset.synthetic import (
     Defect,
+    PipePath,
     damaged_pipe,
+    pipe_run,
     sample_sphere,
     sample_tee,
     scan_damaged_pipe,
+    scan_pipe_run,
 )
+from zeroset.synthetic import Joint as SyntheticJoint
 from zeroset.types import Mesh
 
 #: Dents of the issue: 5 and 15 mm deep, 6 cm wide, in a 0.5 m pipe.
@@ -555,3 +560,92 @@ def test_deviation_map_draws_with_joints_stretches_and_labels_and_without(presen
     for inspection in (presented, bare):
         with Image.open(BytesIO(deviation_map(inspection))) as image:
             assert image.format == "PNG" and image.size == (1210, 506)
+
+
+#: A straight run 3 m along +x with one joint of each kind, 0.4 m in diameter.
+JOINTS = (
+    SyntheticJoint("gap", 0.8, 0.012, depth=0.006),
+    SyntheticJoint("offset", 1.6, 0.008, clock=90.0),
+    SyntheticJoint("bead", 2.3, 0.004),
+)
+
+
+@pytest.fixture(scope="module")
+def jointed_run():
+    """Uniform samples of a straight run with joints and 3 % ovality, inspected on its true
+    wall, and the same run without either."""
+    path = PipePath.build([("straight", 3.0)])
+    found = {}
+    for name, extra in (("plain", {}), ("jointed", {"joints": JOINTS, "ovality": 0.03})):
+        sample = pipe_run(path, 120_000, noise=0.002, rng=11, **extra)
+        found[name] = sample, inspect_pipe(sample.truth_mesh(0.01), sample.points)
+    return found
+
+
+def test_joints_are_found_where_and_as_big_as_they_are(jointed_run):
+    sample, inspection = jointed_run["jointed"]
+    truth = sample.truth_record["joints"]
+    assert len(inspection.joints) == len(truth)
+    for joint, found in zip(truth, inspection.joints, strict=True):
+        axial = inspection.pipe.locate(np.array([joint["centre"]]))[0][0]
+        assert found.kind == joint["kind"]
+        assert abs(found.axial - axial) < 0.02  # metres
+        assert abs(found.size - joint["size"]) < 0.0015
+    offset = next(j for j in inspection.joints if j.kind == "offset")
+    assert abs((offset.clock - 90.0 + 180.0) % 360.0 - 180.0) < 10.0
+    assert jointed_run["plain"][1].joints == ()
+
+
+def test_joints_and_ovality_are_no_defects_and_leave_the_threshold(jointed_run):
+    plain, jointed = jointed_run["plain"][1], jointed_run["jointed"][1]
+    assert plain.defects.defects == () and jointed.defects.defects == ()
+    assert jointed.defects.threshold == pytest.approx(plain.defects.threshold, rel=0.1)
+    stations = np.isfinite(jointed.ovality.ovality)
+    assert np.median(jointed.ovality.ovality[stations]) == pytest.approx(0.03, abs=0.003)
+
+
+@pytest.fixture(scope="module")
+def bent_run():
+    """A scanned run with two tight bends and a last leg of one diameter, the second bend
+    far from the last station: the run whose centreline used to be cut short."""
+    path = PipePath.build(
+        [
+            ("straight", 2.0),
+            ("bend", 0.4, 90.0, 90.0),
+            ("straight", 1.5),
+            ("bend", 0.4, 90.0, 270.0),
+            ("straight", 0.4),
+        ]  # fmt: skip
+    )
+    sample = scan_pipe_run(path, stations=(0.4, 1.4, 2.6, 3.6), rotation_step=6.0, rng=2)
+    inspection = inspect_pipe(_reconstructed(sample), sample.points, viewpoints=sample.viewpoints)
+    return sample, inspection
+
+
+def test_the_centreline_follows_bends_and_runs_the_way_the_robot_went(bent_run):
+    sample, inspection = bent_run
+    truth = np.array(sample.truth_record["centreline"])
+    stations = sample.truth_record["stations"]
+    between = truth[(truth[:, 0] >= stations[0]) & (truth[:, 0] <= stations[-1]), 1:]
+    gaps = cKDTree(inspection.pipe.centres).query(between)[0]
+    assert gaps.max() < 0.005  # metres, between the first and the last station
+    # axial positions count from where the robot started, along its way
+    first = inspection.pipe.locate(np.array([truth[truth[:, 0] > stations[0]][0, 1:]]))
+    assert first[0][0] == pytest.approx(stations[0], abs=0.05)
+    assert inspection.pipe.length == pytest.approx(inspection.pipe.extent, rel=0.02)
+    assert inspection.defects.defects == () and inspection.joints == ()
+
+
+def test_a_stretch_whose_wall_is_no_circle_is_unreliable_and_not_judged():
+    sample = damaged_pipe(60_000, noise=0.002, rng=8)
+    points = sample.points.copy()
+    crushed = (points[:, 2] > 0.9) & (points[:, 2] < 1.1)  # a square section there
+    angle = np.arctan2(points[crushed, 1], points[crushed, 0])
+    square = 0.25 / np.maximum(np.abs(np.cos(angle)), np.abs(np.sin(angle)))
+    points[crushed, :2] *= (square / np.hypot(*points[crushed, :2].T))[:, None] * 0.92
+    inspection = inspect_pipe(sample.truth_mesh(0.01), points)
+    assert inspection.pipe.unreliable
+    for unreliable in inspection.pipe.unreliable:
+        assert 0.85 < unreliable.axial_start and unreliable.axial_end < 1.15
+        assert "residuals" in unreliable.reason
+    assert inspection.defects.defects == ()

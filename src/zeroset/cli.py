@@ -238,8 +238,9 @@ def _parser() -> argparse.ArgumentParser:
         help="write a synthetic cloud and its true surface",
         description="Write seeded synthetic points (PLY, with normals and, for scans, sensor "
         "positions) and the true surface beside them as <stem>-truth.ply; the damaged-* kinds "
-        "also write their defects as <stem>-truth.json. Clock angles are degrees clockwise "
-        "looking along the pipe from its start, 12 o'clock (0) being +y.",
+        "and pipe-run also write their truth (defects, joints, centreline) as "
+        "<stem>-truth.json. Clock angles are degrees clockwise looking along the pipe from its "
+        "start, 12 o'clock (0) being +y (for pipe-run: up, +z at the start, carried along).",
     )
     synth.add_argument("kind", choices=sorted(SYNTH_KINDS), help="what to sample")
     synth.add_argument("-o", "--output", type=Path, required=True, help="points file (.ply)")
@@ -281,13 +282,34 @@ def _parser() -> argparse.ArgumentParser:
         "--ovality",
         metavar="VALUE[,CLOCK]",
         help="(D_max - D_min) / D of the whole pipe, major axis at CLOCK degrees "
-        "(default 0) (damaged-*)",
+        "(default 0) (damaged-*, pipe-run)",
     )
     synth.add_argument(
         "--stations",
         metavar="S0,S1,...",
         help="scanner positions in metres along the centreline (damaged-pipe-scan, "
         "damaged-elbow-scan; default: the centreline's middle)",
+    )
+    run = synth.add_argument_group(
+        "pipe-run",
+        "a random run (0.4 m diameter, starting along +x), scanned at stations 0.5-1.5 m apart",
+    )
+    run.add_argument("--bends", metavar="MIN,MAX", help="how many bends (default: 2,4)")
+    run.add_argument(
+        "--out-of-plane", action="store_true", help="let the bends leave the horizontal plane"
+    )
+    run.add_argument("--tee", action="store_true", help="add a branch on a straight leg")
+    run.add_argument(
+        "--defects", type=int, default=0, metavar="K", help="add K random dents and bulges"
+    )
+    run.add_argument(
+        "--joints", action="store_true", help="add gaps, offsets and beads every 1-3 m"
+    )
+    run.add_argument(
+        "--uniform",
+        type=int,
+        metavar="N",
+        help="write N points sampled uniformly on the wall instead of the scan",
     )
     synth.add_argument("--outliers", type=float, default=0.0, help="share of uniform outliers")
     synth.add_argument("--seed", type=int, default=0, help="seed")
@@ -336,6 +358,7 @@ SYNTH_KINDS = {
     "damaged-elbow": "damaged_pipe",
     "damaged-pipe-scan": "scan_damaged_pipe",
     "damaged-elbow-scan": "scan_damaged_pipe",
+    "pipe-run": "random_pipe_run",
 }
 
 
@@ -839,8 +862,12 @@ def _run_synth(args: argparse.Namespace) -> int:
 
     damaged = args.kind.startswith("damaged-")
     scan = args.kind.endswith("-scan")
-    if not damaged and (args.dent or args.bulge or args.ovality is not None):
+    run = args.kind == "pipe-run"
+    if not damaged and (args.dent or args.bulge or (args.ovality is not None and not run)):
         raise InputError("--dent, --bulge and --ovality go with the damaged-* kinds")
+    for name in ("bends", "out_of_plane", "tee", "defects", "joints", "uniform"):
+        if not run and getattr(args, name) not in (None, False, 0):
+            raise InputError(f"--{name.replace('_', '-')} goes with pipe-run")
     if args.stations is not None and not (damaged and scan):
         raise InputError("--stations goes with damaged-pipe-scan and damaged-elbow-scan")
     with_length = ("cylinder", "tee", "pipe-scan", "damaged-pipe", "damaged-pipe-scan")
@@ -872,9 +899,28 @@ def _run_synth(args: argparse.Namespace) -> int:
         if args.kind in ("damaged-elbow", "damaged-elbow-scan"):
             options["shape"] = "elbow"
     truth = args.output.with_name(f"{args.output.stem}-truth.ply")
-    record = args.output.with_name(f"{args.output.stem}-truth.json") if damaged else None
+    record = args.output.with_name(f"{args.output.stem}-truth.json") if damaged or run else None
     _check_outputs([args.output, truth, record], [], force=args.force)
-    if scan:
+    if run:
+        bends = parse_numbers("--bends", args.bends or "2,4", "MIN,MAX", (2,))
+        ovality = parse_numbers("--ovality", args.ovality, "VALUE", (1,)) if args.ovality else [0]
+        spec = generator(
+            args.seed,
+            diameter=2.0 * options.pop("radius", 0.2),
+            bends=tuple(int(b) if b == int(b) else b for b in bends),
+            out_of_plane=args.out_of_plane,
+            tee=args.tee,
+            defects=args.defects,
+            joints=(1.0, 3.0) if args.joints else None,
+            ovality=ovality[0],
+        )
+        if args.uniform is not None:
+            sample = spec.sample(args.uniform, noise=args.noise, **options)
+        else:
+            sample = spec.scan(
+                rotation_step=args.rotation_step, noise_scale=args.noise_scale, **options
+            )
+    elif scan:
         options.update(rotation_step=args.rotation_step, noise_scale=args.noise_scale)
         sample = generator(**options)
     else:
@@ -886,7 +932,7 @@ def _run_synth(args: argparse.Namespace) -> int:
         print(
             f"wrote {sample.points.shape[0]:,} points to {points_path}"
             + (f", the true surface to {truth_path}" if truth_path else "")
-            + (f" and the truth record (defects, ovality) to {record}" if record else "")
+            + (f" and the truth record to {record}" if record else "")
         )
     return 0
 

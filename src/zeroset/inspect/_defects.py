@@ -31,6 +31,9 @@ MIN_KERNELS = 0.5
 #: Cells within this many kernels of a cell without data (an open end, an opening, a
 #: shadow) are not judged: the kernel there sees one side only.
 EDGE_KERNELS = 2.0
+#: A bump is fitted to at most this many of the points around it (every k-th, in axial
+#: order): past it the fit's cost grows and its error hardly shrinks.
+MAX_BUMP_POINTS = 20_000
 #: A bump's fit stops after this many evaluations of its misfit (a bump converges in a few
 #: tens; noise shaped like none may wander for hundreds, and is left unfitted).
 FIT_EVALUATIONS = 100
@@ -373,7 +376,8 @@ class _BumpFit:
         lo, hi = np.searchsorted(self.axial, [axial - reach_a, axial + reach_a])
         a = self.axial[lo:hi] - axial
         b = np.radians((self.clock[lo:hi] - clock + 180.0) % 360.0 - 180.0) * self.pipe.radius
-        near = np.abs(b) <= reach_b
+        near = np.flatnonzero(np.abs(b) <= reach_b)
+        near = near[:: max(1, -(-near.size // MAX_BUMP_POINTS))]  # evenly, at most so many
         a, b, values = a[near], b[near], self.residual[lo:hi][near]
         start = np.array([0.0, peak * 2.0, 0.0, 0.0, np.log(reach_a), np.log(reach_b)])
         if values.size <= 2 * start.size:

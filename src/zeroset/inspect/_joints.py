@@ -94,9 +94,10 @@ def find_joints(
     axial scatter (`_gap`), is fitted to the rings' excess for its position, width and
     depth. With the scanner's `beams` (`beam_steps` of the points) the scatter is the
     range noise along the beams' axial component, which smears a narrow gap over
-    centimetres; without, only the rings' own length. Inward it is a bead: its size is
-    the largest excess of three rings running. Rings within an offset's reach are
-    part of the offset (its step leaves the rings' means as it crosses them).
+    centimetres; without, the noise is taken as isotropic (as for a defect's depth).
+    Inward it is a bead: its size is the largest excess of three rings running. Rings
+    within an offset's reach are part of the offset (its step leaves the rings' means as
+    it crosses them).
 
     **Offsets** move the pipe beyond the joint sideways: the centreline steps. At each
     boundary between stations, the centres of the sections (`station_fits`), in the
@@ -118,10 +119,11 @@ def find_joints(
     residual = distance[keep] - ovality.section_at(axial, clock, pipe.radius)
     on_wall = np.abs(residual) < OFF_WALL * pipe.radius
     axial, clock, residual = axial[on_wall], clock[on_wall], residual[on_wall]
-    blur = np.zeros_like(axial)
-    if beams is not None:  # range noise along oblique beams moves points along the axis
+    blur = wall.noise_along(axial)  # isotropic noise moves points along the axis as much
+    if beams is not None:  # range noise moves them along the beams
         s_a, _, s_r = beams[keep][on_wall].T
-        blur = np.nan_to_num(wall.noise_along(axial) * np.abs(s_a) / np.maximum(np.abs(s_r), 0.2))
+        known = np.isfinite(s_a)
+        blur[known] *= np.abs(s_a[known]) / np.maximum(np.abs(s_r[known]), 0.2)
     whole = np.isfinite(wall.residual).all(axis=1) & (wall.off_wall < BRANCH).all(axis=1)
     reach = int(np.ceil(BASELINE * pipe.radius / (wall.axial_edges[1] - wall.axial_edges[0])))
     whole = ~ndimage.binary_dilation(~whole, iterations=reach, border_value=1)

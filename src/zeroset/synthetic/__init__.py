@@ -13,29 +13,45 @@ for simulated scans, each point's sensor position (``viewpoints``).
 - Damaged pipes: `damaged_pipe` (a straight pipe or an elbow with `Defect` dents and bulges
   and ovality) and `scan_damaged_pipe` (the in-pipe scan of a damaged straight pipe or
   elbow from several stations); their ``truth_record`` lists the defects.
+- Pipe runs: a `PipePath` (straight legs and circular bends, its 12 o'clock carried along
+  without twist) with dents and bulges, ovality, `Joint` rings (gaps, offsets, weld beads)
+  and `Tee` branches; `pipe_run` samples its walls, `scan_pipe_run` scans it from stations
+  along it, and `random_pipe_run` draws one (a `RunSpec`) from a seed. Their
+  ``truth_record`` holds the path, the true centreline, the defects, joints and tees.
 - `add_noise`, `add_outliers`, and `write_sample` (points and truth mesh as PLY, the truth
   record as JSON).
 
 Units are metres. The same seed gives identical arrays.
 """
 
-from ._damage import CLOCK_CONVENTION, DEFECT_KINDS, Defect, damaged_pipe, scan_damaged_pipe
+from ._damage import damaged_pipe, scan_damaged_pipe
+from ._path import PipePath
 from ._pipes import sample_elbow, sample_tee
+from ._runs import RUN_CLOCK_CONVENTION, RunSpec, Tee, pipe_run, random_pipe_run, scan_pipe_run
 from ._sample import Sample, add_noise, add_outliers, write_sample
 from ._scanner import hokuyo_accuracy, scan_pipe, scan_pipe_size
 from ._shapes import sample_cylinder, sample_sphere, sample_torus, two_spheres
 from ._truth import MAX_FACES
+from ._wall import CLOCK_CONVENTION, DEFECT_KINDS, JOINT_KINDS, Defect, Joint
 
 __all__ = [
     "CLOCK_CONVENTION",
     "DEFECT_KINDS",
     "Defect",
+    "JOINT_KINDS",
+    "Joint",
     "MAX_FACES",
+    "PipePath",
+    "RUN_CLOCK_CONVENTION",
+    "RunSpec",
     "Sample",
+    "Tee",
     "add_noise",
     "add_outliers",
     "damaged_pipe",
     "hokuyo_accuracy",
+    "pipe_run",
+    "random_pipe_run",
     "sample_cylinder",
     "sample_elbow",
     "sample_sphere",
@@ -43,6 +59,7 @@ __all__ = [
     "sample_torus",
     "scan_damaged_pipe",
     "scan_pipe",
+    "scan_pipe_run",
     "scan_pipe_size",
     "two_spheres",
     "write_sample",

@@ -11,6 +11,7 @@ from .._validate import positive, require_rng
 from ..errors import InputError
 from . import _truth
 from ._distance import circle_distance, curve_distance, query, wall_distance
+from ._path import PipePath, _tube_sites
 from ._sample import Sample, _count, _fraction, _noise, add_noise, finish
 
 __all__ = ["sample_elbow", "sample_tee"]
@@ -41,25 +42,11 @@ def _elbow_axis(radius_b: float, leg: float):
     return axis
 
 
-def _elbow_sites(
-    n: int, radius: float, bend_radius: float, leg: float, rng: np.random.Generator
-) -> tuple[np.ndarray, np.ndarray]:
-    """Draw `n` wall sites uniform in area on an elbow: arc lengths s (n,) along its axis
-    and angles phi (n,) about it, phi measured from the in-plane normal towards +y."""
-    bend = 0.5 * np.pi * bend_radius
-    total = 2.0 * leg + bend
-    ratio = radius / bend_radius
-    s = np.zeros(0)
-    phi = np.zeros(0)
-    while s.size < n:
-        batch = int(1.1 * (1.0 + ratio) * (n - s.size)) + 64
-        ss = rng.uniform(0.0, total, batch)
-        pp = rng.uniform(0.0, 2.0 * np.pi, batch)
-        in_bend = (ss >= leg) & (ss < leg + bend)
-        weight = np.where(in_bend, 1.0 - ratio * np.cos(pp), 1.0) / (1.0 + ratio)
-        accept = rng.uniform(0.0, 1.0, batch) < weight
-        s, phi = np.concatenate([s, ss[accept]]), np.concatenate([phi, pp[accept]])
-    return s[:n], phi[:n]
+def _elbow_path(bend_radius: float, leg: float) -> PipePath:
+    """Return the elbow's centreline: a leg along +z from the origin, a 90 degree bend
+    towards +x (clock 270 of up = +y), a leg along +x."""
+    pieces = [("straight", leg), ("bend", bend_radius, 90.0, 270.0), ("straight", leg)]
+    return PipePath.build(pieces, direction=(0.0, 0.0, 1.0), up=(0.0, 1.0, 0.0))
 
 
 def _elbow_frame(axis, bend_radius: float, leg: float, s: np.ndarray):
@@ -72,6 +59,22 @@ def _elbow_frame(axis, bend_radius: float, leg: float, s: np.ndarray):
         chosen = part == index
         centre[chosen], e_n[chosen] = axis(index, s[chosen] - start)
     return centre, e_n
+
+
+def _branch_area(big: float, small: float, x_end: float) -> float:
+    """Return the area a branch of radius `small`, its open end `x_end` from the main pipe's
+    axis, adds to a main pipe of radius `big`: its wall outside the main pipe less the
+    hole it cuts (exact: a 1-D quadrature and an elliptic integral)."""
+    hole_area = integrate.quad(
+        lambda t: 2.0 * big * math.asin(math.sqrt(max(small**2 - t * t, 0.0)) / big),
+        -small,
+        small,
+        epsabs=1e-13,
+        epsrel=1e-12,
+    )[0]
+    return (
+        small * (2.0 * np.pi * x_end - 4.0 * big * special.ellipe((small / big) ** 2)) - hole_area
+    )
 
 
 def sample_elbow(
@@ -134,7 +137,7 @@ def sample_elbow(
             f"bend_radius must exceed radius; got bend_radius={bend_radius!r}, radius={radius!r}"
         )
     rng = require_rng(rng)
-    s, phi = _elbow_sites(n, radius, bend_radius, leg, rng)
+    s, phi = _tube_sites(_elbow_path(bend_radius, leg), radius, n, rng)
     axis = _elbow_axis(bend_radius, leg)
     centre, e_n = _elbow_frame(axis, bend_radius, leg, s)
     total = 2.0 * leg + 0.5 * np.pi * bend_radius
@@ -308,18 +311,7 @@ def sample_tee(
             best[need] = np.minimum(best[need], curve_distance(x[need], seam))
         return best
 
-    hole_area = integrate.quad(
-        lambda t: 2.0 * big * math.asin(math.sqrt(max(small**2 - t * t, 0.0)) / big),
-        -small,
-        small,
-        epsabs=1e-13,
-        epsrel=1e-12,
-    )[0]
-    area = (
-        main_area
-        - hole_area
-        + small * (2.0 * np.pi * x_end - 4.0 * big * special.ellipe((small / big) ** 2))
-    )
+    area = main_area + _branch_area(big, small, x_end)
 
     def build(spacing: float | None):
         diagonal = math.sqrt((x_end + big) ** 2 + 4.0 * big**2 + length**2)

@@ -49,7 +49,8 @@ class Sample:
         Which points are outliers (see `add_outliers`); None only for hand-made samples.
     truth_record : dict or None
         A JSON-able description of the truth beyond the mesh, for generators whose truth
-        has named parts (the defects of `damaged_pipe` and `scan_damaged_pipe`); None
+        has named parts (the defects of `damaged_pipe` and `scan_damaged_pipe`; the path,
+        centreline, defects, joints and tees of `pipe_run` and `scan_pipe_run`); None
         otherwise. `write_sample` writes it beside the points as ``<stem>-truth.json``.
     """
 
@@ -211,8 +212,9 @@ def write_sample(
 
     The points file holds ``x, y, z``, ``nx, ny, nz`` and, for scans, ``vp_x, vp_y, vp_z``
     as doubles, which `zeroset.io.read_points` reads back. A sample with a ``truth_record``
-    (the damaged pipes: radius, ovality, each defect with its centre) also gets it as
-    indented JSON in ``<stem>-truth.json``. Each file is replaced atomically (through
+    (the damaged pipes: radius, ovality, each defect with its centre; the pipe runs also
+    their path, centreline, joints and tees) also gets it as indented JSON in
+    ``<stem>-truth.json``. Each file is replaced atomically (through
     `zeroset.io`), so a failed write leaves an existing file untouched.
 
     Parameters

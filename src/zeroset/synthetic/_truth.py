@@ -20,6 +20,7 @@ from ..types import Mesh
 __all__ = [
     "MAX_FACES",
     "elbow_mesh",
+    "grid_mesh",
     "join",
     "resolve_spacing",
     "sphere_mesh",
@@ -86,6 +87,17 @@ def join(*meshes: Mesh) -> Mesh:
         vertices=np.concatenate([m.vertices for m in meshes]),
         faces=np.concatenate([m.faces + o for m, o in zip(meshes, offsets, strict=True)]),
     )
+
+
+def grid_mesh(points: np.ndarray, normals: np.ndarray, keep: np.ndarray | None = None) -> Mesh:
+    """Mesh a grid of points (R, C, 3), rows open and columns periodic, oriented like the
+    normals (R, C, 3); `keep` (R - 1, C) bool selects cells, unused points are dropped."""
+    rows, cols = points.shape[:2]
+    vertices, normals = points.reshape(-1, 3), normals.reshape(-1, 3)
+    index = np.arange(rows * cols).reshape(rows, cols)
+    faces = _orient(vertices, _quad_faces(index, keep), normals)
+    used, inverse = np.unique(faces, return_inverse=True)
+    return Mesh(vertices=vertices[used], faces=inverse.reshape(-1, 3).astype(np.int64))
 
 
 def tube_mesh(
