@@ -52,7 +52,7 @@ MIN_STATION_POINTS = 16
 #: A station is unreliable where its section leaves residuals spread more than this many
 #: times the points' noise, where its centre lies more than `OFF_CENTRE` radii off the
 #: centreline, or where no section is fitted over more than `GUIDED` radii running.
-SPREAD = 2.0
+SPREAD = 3.0
 OFF_CENTRE = 0.01
 GUIDED = 2.0
 #: Vertices whose curvature is further than this share from the pipe's do not place its
@@ -279,8 +279,8 @@ def station_fits(pipe: Pipe, located, *, step: float | None = None, oval: bool =
     branches do not pull it; with ``oval=False`` only the circle (the first three terms).
     Returns arrays per station: ``axial`` (K,) centres, ``coef`` (K, 5) or (K, 3),
     ``count`` (K,), ``fitted`` (K,) bool, ``complete`` (K,) bool and ``spread`` (K,),
-    the median over the sectors of angle of the residuals' robust spread in each (a dent
-    in a few sectors leaves it, a section that fits nowhere does not).
+    the median over the sectors of angle of the robust spread of the fit's inliers in each
+    (a dent in a few sectors leaves it, a section that fits nowhere does not).
 
     A station is not fitted where its points cover fewer than `COVERED` of `SECTORS`
     sectors of angle (counting points within a tenth of the median distance from the
@@ -319,7 +319,7 @@ def station_fits(pipe: Pipe, located, *, step: float | None = None, oval: bool =
         u = residual / (TUKEY * np.maximum(scale[station], 1e-9))
         weight = np.where(np.abs(u) < 1.0, (1.0 - u**2) ** 2, 0.0)
     by_sector = _station_mad(
-        np.abs(residual), station * SECTORS + sector, residual == residual, n_stations * SECTORS
+        np.abs(residual), station * SECTORS + sector, weight > 0, n_stations * SECTORS
     ).reshape(n_stations, SECTORS)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # a station without points
