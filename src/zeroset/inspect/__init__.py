@@ -10,7 +10,9 @@
   inward (a dent or a deposit), positive outward (a bulge or wall loss).
 - `ovality`: ``(D_max - D_min) / D_nominal`` per station.
 - `unroll` and `find_defects`: the wall unrolled into axial position by clock angle and
-  smoothed, and its connected regions beyond the noise.
+  smoothed, and its connected regions beyond the points' own noise.
+- `find_joints`: ring features (gaps, offsets, beads); `check_stations`: the stretches
+  whose sections the fit does not explain, never judged for defects.
 - `inspection_summary`, `inspection_lines`, `write_defects_csv`, `write_joints_csv`,
   `write_ovality_csv`: the numbers as JSON, printed lines and tables; `deviation_map`,
   `ovality_plot` and `mesh_picture`: the pictures, as PNG bytes.
@@ -25,7 +27,7 @@ way of the largest component of its end-to-end vector (a pipe along z runs towar
 Lengths are metres throughout.
 """
 
-from ._centreline import Pipe, Unreliable, beam_steps, fit_pipe
+from ._centreline import Pipe, Unreliable, beam_steps, check_stations, fit_pipe
 from ._defects import Branch, Defect, Defects, find_defects
 from ._files import (
     inspection_lines,
@@ -36,7 +38,7 @@ from ._files import (
 )
 from ._frame import UP
 from ._inspection import Inspection, inspect_pipe
-from ._joints import JOINT_KINDS, Joint
+from ._joints import JOINT_KINDS, Joint, find_joints
 from ._measure import Ovality, deviation, ovality
 from ._pictures import clock_label, deviation_map, mesh_picture, ovality_plot
 from ._unrolled import WallMap, unroll
@@ -54,10 +56,12 @@ __all__ = [
     "Unreliable",
     "WallMap",
     "beam_steps",
+    "check_stations",
     "clock_label",
     "deviation",
     "deviation_map",
     "find_defects",
+    "find_joints",
     "fit_pipe",
     "inspect_pipe",
     "inspection_lines",

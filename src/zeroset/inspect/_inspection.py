@@ -75,7 +75,14 @@ def inspect_pipe(
     up=UP,
     rng=0,
 ) -> Inspection:
-    """Inspect a pipe: fit its centreline, measure deviation and ovality, find defects.
+    """Inspect a pipe: fit its centreline, measure deviation and ovality, find joints and
+    defects.
+
+    The stages: `fit_pipe` (the centreline), `ovality` and `deviation`, `unroll` (the
+    wall map, with the points' noise about the local wall), `find_joints` (ring
+    features), `check_stations` (stretches whose sections the fit does not explain,
+    reported in ``pipe.unreliable``) and `find_defects`, which judges neither the joints'
+    stretches nor the unreliable ones.
 
     Parameters
     ----------
@@ -88,8 +95,10 @@ def inspect_pipe(
         judged against the mesh's overall roughness.
     viewpoints : (3,) or (N, 3) array_like, optional
         The scanner's position for all `points` or for each (a row of NaN where not
-        known). With them a defect's depth is fitted along the scanner's beams, where its
-        range noise lies, which an oblique beam's noise would otherwise make shallower.
+        known), in the order it scanned them. With them the centreline follows the run
+        the robot travelled, from where it started (see `fit_pipe`), and a defect's depth
+        and a gap's width are fitted along the scanner's beams, where its range noise
+        lies, which an oblique beam's noise would otherwise blur.
     nominal_diameter : float, optional
         Metres; default the median measured diameter.
     threshold : float, optional

@@ -139,13 +139,17 @@ def find_joints(
 
 def joint_spans(joints, pipe: Pipe, kernel: float) -> list[tuple[float, float]]:
     """Axial stretches (start, end), metres, whose wall the `joints` change: not judged
-    for defects. A ring's own width and `kernel`-smoothing reach each side; an offset's
-    reach of the centreline's smoothing (the knots' spacing twice) besides."""
+    for defects. A gap's width, a bead's `BEAD_WIDTH` or an offset's fit (`OFFSET_REACH`
+    each side, where the centreline turns to follow its step), and three `kernel`s (the
+    map's smoothing, m) each side."""
     spans = []
     for joint in joints:
-        half = 0.5 * (joint.size if joint.kind == "gap" else BEAD_WIDTH * pipe.radius)
         if joint.kind == "offset":
             half = OFFSET_REACH * pipe.radius
+        elif joint.kind == "gap":
+            half = 0.5 * joint.size
+        else:
+            half = 0.5 * BEAD_WIDTH * pipe.radius
         spans.append((joint.axial - half - 3 * kernel, joint.axial + half + 3 * kernel))
     return spans
 
