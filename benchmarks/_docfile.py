@@ -63,6 +63,10 @@ and keeps the rest (this introduction included):
 - [Inspection](#inspection): dents, bulges and ovality found in simulated in-pipe scans and
   elbows against the recorded truth, clean pipes and a tee, and a 20 m pipe of 2.26M points
   reconstructed and inspected in one run (`benchmarks/bench_inspect.py`).
+- [Inspection of pipe runs](#inspection-of-pipe-runs): random runs with bends, tees, joints
+  and defects, scanned by the in-pipe model, against their truth: the centreline, defects,
+  false defects and branches, joints, ovality, the threshold with and without joints, and
+  the time of a 1M-point inspection (`benchmarks/bench_runs.py`).
 - [Peers](#peers-zeroset-against-open3d-pymeshlab-poissonrecon-and-vtk): zeroset against the
   tools a user would otherwise pick (Open3D, PyMeshLab, Kazhdan's PoissonRecon with its
   trimming, VTK) on synthetic pipes, a sphere and a torus with exact ground truth and on real
