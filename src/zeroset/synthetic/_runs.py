@@ -18,7 +18,7 @@ from ._distance import query
 from ._path import PipePath, _tube_sites
 from ._pipes import _branch_area
 from ._sample import Sample, _count, _fraction, _noise, add_noise, finish
-from ._wall import DEFECT_KINDS, Defect, Joint, _clock_vector, _place, _rounded, _wall
+from ._wall import DEFECT_KINDS, Defect, Joint, _clock_vector, _rounded, _settle, _wall
 
 __all__ = [
     "RUN_CLOCK_CONVENTION",
@@ -77,11 +77,7 @@ class Tee:
     length: float
 
     def __post_init__(self) -> None:
-        axial, clock = _place("tee", self.axial, self.clock)
-        object.__setattr__(self, "axial", axial)
-        object.__setattr__(self, "clock", clock)
-        object.__setattr__(self, "radius", positive(self.radius, "tee radius"))
-        object.__setattr__(self, "length", positive(self.length, "tee length"))
+        _settle(self, "tee", None, ("radius", "length"))
 
 
 def _towards(path: PipePath, axial: float, clock: float) -> tuple[np.ndarray, np.ndarray]:

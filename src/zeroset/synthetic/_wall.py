@@ -38,8 +38,13 @@ OFFSET_RAMP = 2e-3
 BEAD_WIDTH = 0.02
 
 
-def _place(what: str, axial, clock) -> tuple[float, float]:
-    """Validate a feature's position: an arc length >= 0 and a clock angle in [0, 360)."""
+def _settle(feature, what: str, kinds, lengths: tuple[str, ...]) -> None:
+    """Validate a frozen feature in place: its kind among `kinds` (None: it has none), its
+    position (an arc length >= 0 and a clock angle in [0, 360)) and its `lengths` (> 0),
+    all as floats."""
+    if kinds is not None and feature.kind not in kinds:
+        raise InputError(f"{what} kind must be one of {kinds}; got {feature.kind!r}")
+    axial, clock = feature.axial, feature.clock
     for name, value in (("axial", axial), ("clock", clock)):
         if isinstance(value, bool) or not isinstance(value, numbers.Real):
             raise InputError(f"{what} {name} must be a number; got {value!r}")
@@ -47,7 +52,10 @@ def _place(what: str, axial, clock) -> tuple[float, float]:
         raise InputError(f"{what} axial must be a distance >= 0 in metres; got {axial!r}")
     if not 0.0 <= clock < 360.0:
         raise InputError(f"{what} clock must be degrees in [0, 360); got {clock!r}")
-    return float(axial), float(clock)
+    object.__setattr__(feature, "axial", float(axial))
+    object.__setattr__(feature, "clock", float(clock))
+    for name in lengths:
+        object.__setattr__(feature, name, positive(getattr(feature, name), f"{what} {name}"))
 
 
 @dataclass(frozen=True)
@@ -98,13 +106,7 @@ class Defect:
     width: float
 
     def __post_init__(self) -> None:
-        if self.kind not in DEFECT_KINDS:
-            raise InputError(f"defect kind must be one of {DEFECT_KINDS}; got {self.kind!r}")
-        axial, clock = _place("defect", self.axial, self.clock)
-        object.__setattr__(self, "axial", axial)
-        object.__setattr__(self, "clock", clock)
-        object.__setattr__(self, "depth", positive(self.depth, "defect depth"))
-        object.__setattr__(self, "width", positive(self.width, "defect width"))
+        _settle(self, "defect", DEFECT_KINDS, ("depth", "width"))
 
 
 @dataclass(frozen=True)
@@ -158,13 +160,7 @@ class Joint:
     depth: float = 0.01
 
     def __post_init__(self) -> None:
-        if self.kind not in JOINT_KINDS:
-            raise InputError(f"joint kind must be one of {JOINT_KINDS}; got {self.kind!r}")
-        axial, clock = _place("joint", self.axial, self.clock)
-        object.__setattr__(self, "axial", axial)
-        object.__setattr__(self, "clock", clock)
-        object.__setattr__(self, "size", positive(self.size, "joint size"))
-        object.__setattr__(self, "depth", positive(self.depth, "joint depth"))
+        _settle(self, "joint", JOINT_KINDS, ("size", "depth"))
 
 
 def _step(x: np.ndarray, width: float) -> tuple[np.ndarray, np.ndarray]:
