@@ -112,9 +112,9 @@ def _runs(count: int, rotation_step: float) -> tuple[list[str], list[dict]]:
 
     lines = [
         "| run | bends | tee | points | centreline error, mm (between stations) | defects "
-        "found | depth errors, mm (± 95 %) | false defects / branches, undamaged | "
-        "threshold, mm | inspect, s |",
-        "|---|---|---|---|---|---|---|---|---|---|",
+        "found | depth errors, mm (± 95 %) | false defects, damaged | false defects / "
+        "branches / joints, undamaged | threshold, mm | inspect, s |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     results = []
     for seed in range(count):
@@ -128,6 +128,8 @@ def _runs(count: int, rotation_step: float) -> tuple[list[str], list[dict]]:
         spacing = float(np.max(np.diff(spec.stations))) if len(spec.stations) > 1 else 0.0
         bends = sum(piece[0] == "bend" for piece in sample.truth_record["path"]["pieces"])
         false_branches = len(clean.defects.branches) - len(spec.tees)
+        matched = {id(r["found"]) for r in rows if r["found"] is not None}
+        extra = sum(id(d) not in matched for d in inspection.defects.defects)
         results.append(
             {
                 "seed": seed,
@@ -136,6 +138,8 @@ def _runs(count: int, rotation_step: float) -> tuple[list[str], list[dict]]:
                 "between": between,
                 "spacing": spacing,
                 "false": len(clean.defects.defects),
+                "extra": extra,
+                "false_joints": len(clean.joints) + len(inspection.joints),  # runs without
                 "false_branches": max(false_branches, 0),
                 "missed_branches": max(-false_branches, 0),
                 "seconds": seconds,
@@ -151,8 +155,8 @@ def _runs(count: int, rotation_step: float) -> tuple[list[str], list[dict]]:
         lines.append(
             f"| {seed} | {bends} | {'yes' if spec.tees else ''} | "
             f"{sample.points.shape[0]:,} | {1000 * error:.1f} ({1000 * between:.1f}) | "
-            f"{sum(r['found'] is not None for r in rows)}/{len(rows)} | {depths} | "
-            f"{len(clean.defects.defects)} / {max(false_branches, 0)} | "
+            f"{sum(r['found'] is not None for r in rows)}/{len(rows)} | {depths} | {extra} | "
+            f"{len(clean.defects.defects)} / {max(false_branches, 0)} / {len(clean.joints)} | "
             f"{1000 * inspection.defects.threshold:.2f} | {seconds:.1f} |"
         )
         print(lines[-1], flush=True)
@@ -183,7 +187,9 @@ def _summary(results: list[dict]) -> list[str]:
         f"{len(inside)}/{len(found)}; interval no wider than ±3 mm {len(narrow)}/{len(found)}.",
         f"- **Undamaged runs**: {sum(r['false'] for r in results)} false defects, "
         f"{sum(r['false_branches'] for r in results)} false branches, "
-        f"{sum(r['missed_branches'] for r in results)} tees missed.",
+        f"{sum(r['missed_branches'] for r in results)} tees missed. Beside the true defects "
+        f"of the damaged runs, {sum(r['extra'] for r in results)} false ones. Joints (none "
+        f"in these runs) reported on both: {sum(r['false_joints'] for r in results)}.",
         f"- **Inspection time** of these runs: {statistics.median(seconds):.1f} s "
         f"median, {max(seconds):.1f} s at most (largest run "
         f"{max(r['points'] for r in results):,} points); the target is "
@@ -196,7 +202,7 @@ def _joints(count: int, rotation_step: float) -> list[str]:
     runs without them."""
     from zeroset.synthetic import random_pipe_run
 
-    joint_rows, ovality, thresholds, joint_defects = [], [], [], 0
+    joint_rows, ovality, thresholds, joint_defects, false_joints = [], [], [], 0, 0
     for seed in range(100, 100 + count):
         spec = random_pipe_run(seed, defects=3, joints=(1.0, 3.0), ovality=0.03)
         sample = spec.scan(rotation_step=rotation_step)
@@ -205,6 +211,8 @@ def _joints(count: int, rotation_step: float) -> list[str]:
         plain_inspection = _inspect(plain.scan(rotation_step=rotation_step))[0]
         rows = _joint_rows(inspection, sample.truth_record["joints"])
         joint_rows.extend(rows)
+        matched = {id(r["found"]) for r in rows if r["found"] is not None}
+        false_joints += sum(id(j) not in matched for j in inspection.joints)
         for joint in sample.truth_record["joints"]:
             axial = inspection.pipe.locate(np.array([joint["centre"]]))[0][0]
             joint_defects += sum(
@@ -241,7 +249,8 @@ def _joints(count: int, rotation_step: float) -> list[str]:
         *lines,
         "",
         f"- Joints found within 2 cm with their size within 1.5 mm: {within}/{len(joint_rows)};"
-        f" defects reported at a joint: {joint_defects}.",
+        f" defects reported at a joint: {joint_defects}; joints reported where there is none:"
+        f" {false_joints}.",
         f"- Ovality 3 %: the median over the stations off by "
         f"{statistics.mean(ovality):+.2f} points on average, at most "
         f"{max(map(abs, ovality)):.2f}.",

@@ -50,10 +50,9 @@ THIN = 0.02
 #: Fewest points a station needs for its fit.
 MIN_STATION_POINTS = 16
 #: A station is unreliable where its section leaves residuals spread more than this many
-#: times the points' noise, where its centre lies more than `OFF_CENTRE` radii off the
-#: centreline, or where no section is fitted over more than `GUIDED` radii running.
+#: times the points' noise, or where no section is fitted over more than `GUIDED` radii
+#: running.
 SPREAD = 3.0
-OFF_CENTRE = 0.01
 GUIDED = 2.0
 #: Vertices whose curvature is further than this share from the pipe's do not place its
 #: first centreline (a branch of another diameter, a flange, the rim), unless fewer than
@@ -120,7 +119,7 @@ class Pipe:
         one radius) get NaN.
         """
         x = np.asarray(x, dtype=np.float64).reshape(-1, 3)
-        _, nearest = cKDTree(self.centres).query(x)
+        _, nearest = cKDTree(self.centres).query(x, workers=-1)
         along = self.axial[nearest] + np.einsum(
             "ij,ij->i", x - self.centres[nearest], self.tangents[nearest]
         )
@@ -207,7 +206,8 @@ def fit_pipe(
     up : (3,) array_like
         The world's up: 12 o'clock (see `zeroset.inspect` for the clock convention).
     rng : numpy.random.Generator or int or None
-        Chooses the positions fitted when there are more than `MAX_FIT_VERTICES`.
+        Chooses the positions fitted when there are more than `MAX_FIT_VERTICES` (as
+        evenly over the wall as the data allow, see `_evenly`).
 
     Returns
     -------
@@ -245,13 +245,13 @@ def fit_pipe(
     run = path[-1] - path[0]
     if stations is None and run[np.argmax(np.abs(run))] < 0:  # the largest component's way
         path = path[::-1]
+    pipe = _pipe_along(path, radius, radius, up, margin=radius)
     if points is None:  # the surface, evenly, whatever the size of its triangles
         wall = sample_surface(mesh, MAX_FIT_VERTICES, rng=rng)[0]
     else:
         wall = np.asarray(points, dtype=np.float64) - shift
         if wall.shape[0] > MAX_FIT_VERTICES:
-            wall = wall[np.sort(rng.choice(wall.shape[0], MAX_FIT_VERTICES, replace=False))]
-    pipe = _pipe_along(path, radius, radius, up, margin=radius)
+            wall = wall[_evenly(pipe.locate(wall), STATION * radius, rng)]
     first, last = _data_ends(pipe, wall, pipe.locate(wall), STATION * radius)
     extent = last - first
     for _ in range(ROUNDS):
@@ -284,7 +284,7 @@ def station_fits(pipe: Pipe, located, *, step: float | None = None, oval: bool =
 
     A station is not fitted where its points cover fewer than `COVERED` of `SECTORS`
     sectors of angle (counting points within a tenth of the median distance from the
-    centreline), are fewer than 16 or than 0.3 of the median count, or where the circle's
+    centreline), are fewer than `MIN_STATION_POINTS`, or where the circle's
     centre is more than half the median fitted radius off the centreline or its radius a
     quarter off that median. It is complete when fitted with every sector covered.
     """
@@ -310,7 +310,6 @@ def station_fits(pipe: Pipe, located, *, step: float | None = None, oval: bool =
     covered[station[near], sector[near]] = True
     count = np.bincount(station, minlength=n_stations)
     fitted = (covered.sum(axis=1) >= COVERED) & (count >= MIN_STATION_POINTS)
-    fitted &= count >= 0.3 * np.median(count[fitted]) if fitted.any() else fitted
     weight = np.where(np.abs(distance - typical) < 0.3 * typical, 1.0, 0.0)
     for _ in range(6):
         coef = _weighted_fits(basis, distance, weight, station, n_stations, fitted)
@@ -344,11 +343,9 @@ def check_stations(pipe: Pipe, located, noise, *, excused=()) -> tuple[Unreliabl
 
     A station (`station_fits`) is unreliable where its fitted section leaves a robust
     spread of residuals above `SPREAD` times the `noise` in most sectors of angle (a dent
-    takes a few; the wall there is no circle or
-    ellipse round this centreline: a junction, a collapse, a centreline that cut a
-    corner), where the section's centre lies more than `OFF_CENTRE` radii off the
-    centreline (the centreline could not follow it), and where no section could be fitted
-    for more than `GUIDED` radii running (the data do not go round the pipe: the
+    takes a few; the wall there is no circle or ellipse round this centreline: a
+    junction, a collapse, a centreline that cut a corner), and where no section could be
+    fitted for more than `GUIDED` radii running (the data do not go round the pipe: the
     centreline there follows the axis points or runs straight on, unchecked). Stations
     within the axial stretches `excused` ((start, end) pairs, metres: ring features,
     whose wall is meant to leave the section) are not judged. Consecutive stations
@@ -357,7 +354,6 @@ def check_stations(pipe: Pipe, located, noise, *, excused=()) -> tuple[Unreliabl
     circles = station_fits(pipe, located, oval=False)
     sections = station_fits(pipe, located)
     good = circles["fitted"] | sections["complete"]
-    coef = np.where(sections["complete"][:, None], sections["coef"][:, :3], circles["coef"])
     scale = np.where(sections["complete"], sections["spread"], circles["spread"])
     axial = circles["axial"]
     step = axial[1] - axial[0] if axial.size > 1 else pipe.length
@@ -369,8 +365,6 @@ def check_stations(pipe: Pipe, located, noise, *, excused=()) -> tuple[Unreliabl
         f"its section leaves residuals of {1000 * v:.1f} mm, against noise of {1000 * n:.1f} mm"
         for v, n in zip(scale[spread], local[spread], strict=True)
     ]
-    off = good & ~spread & (np.hypot(coef[:, 1], coef[:, 2]) > OFF_CENTRE * pipe.radius)
-    reason[off] = "the centreline does not follow its section's centre"
     runs = np.split(np.arange(axial.size), np.flatnonzero(np.diff(good.astype(np.int8))) + 1)
     for run in runs:
         if not good[run[0]] and run.size * step > GUIDED * pipe.radius:
@@ -637,6 +631,30 @@ def _without_ovality(located, sections: dict):
               for i in (3, 4))  # fmt: skip
     twice = np.radians(2.0 * clock)
     return axial, clock, distance - a2 * np.cos(twice) - b2 * np.sin(twice)
+
+
+def _evenly(located, step: float, rng: np.random.Generator) -> np.ndarray:
+    """Sorted indices of at most `MAX_FIT_VERTICES` of the positions `located` (axial,
+    clock, distance; NaN beyond the centreline), as evenly over the wall as they allow: a
+    random choice of at most the same number in every cell of `step` metres by one of
+    `SECTORS` sectors of angle, all of them where a cell holds fewer. A scan's thin tail
+    far from the scanner, and the side of a bend its scan lines leave sparse, keep every
+    point their sections need. Positions beyond the centreline make one more cell."""
+    axial, clock, _ = located
+    cell = np.floor(axial / step) * SECTORS + np.floor(clock / (360.0 / SECTORS))
+    _, label = np.unique(cell, return_inverse=True)  # NaN: one more
+    label = label.ravel()
+    counts = np.bincount(label)
+    low, high = 0, int(counts.max())  # the most per stretch that keeps within the budget
+    while low < high:
+        middle = (low + high + 1) // 2
+        if np.minimum(counts, middle).sum() <= MAX_FIT_VERTICES:
+            low = middle
+        else:
+            high = middle - 1
+    order = np.lexsort((rng.random(axial.size), label))
+    rank = np.arange(axial.size) - np.r_[0, np.cumsum(counts)[:-1]][label[order]]
+    return np.sort(order[rank < low])
 
 
 def _data_ends(pipe: Pipe, wall: np.ndarray, located, step: float) -> tuple[float, float]:

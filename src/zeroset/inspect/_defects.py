@@ -117,6 +117,9 @@ class Defects:
         Index into `defects` of each cell of the wall map, -1 for none.
     basis : str
         What the threshold came from, in words (with its figures in mm).
+    unconfirmed : int
+        Regions beyond the cells' limit and the threshold that their own bump fit did not
+        confirm (see `find_defects`): not reported.
     """
 
     defects: tuple[Defect, ...]
@@ -125,6 +128,7 @@ class Defects:
     significance: float
     labels: np.ndarray
     basis: str = ""
+    unconfirmed: int = 0
 
     def __post_init__(self) -> None:
         self.labels.flags.writeable = False
@@ -154,7 +158,7 @@ def find_defects(
     (`BRANCH`) are a branch; with the cells without data next to them (its opening) and
     `BRANCH_MARGIN` radii around, a region touching them is part of it. Cells within
     `EDGE_KERNELS` kernels of cells without data (the open ends, a branch's opening, a
-    shadow) are not judged.
+    shadow) or of the stretches `excluded` are not judged.
 
     The depth and position of each defect come from a raised-cosine bump, plus a
     constant, fitted by least squares to the residuals of the `samples` (N, 3) around it;
@@ -162,7 +166,12 @@ def find_defects(
     the samples, a row of NaN where unknown) the bump is fitted along them, where the
     range noise lies (see `_BumpFit.bump`). Defects shallower than `threshold` (metres;
     default the median over the wall of the residual a cell needs to be significant) are
-    not reported. `located` is ``pipe.locate(samples)`` when already computed. Cells in
+    not reported, nor those the bump does not confirm: whose fitted depth is not as many
+    of its own standard errors deep as a cell needed (or to which no bump fits). The
+    cells' errors hold the points' noise only; a region that the model's own errors
+    raised (a centreline that cannot follow a bend's start, a section seen from afar)
+    is broad and shallow, and the bump fitted to its points, with their scatter, does
+    not stand out. `located` is ``pipe.locate(samples)`` when already computed. Cells in
     the axial stretches `excluded` ((start, end) pairs, metres: ring features, and
     stations whose sections the fit does not explain) are not judged at all.
     """
@@ -179,8 +188,10 @@ def find_defects(
     skipped = np.zeros(middle.shape, dtype=bool)
     for start, end in excluded:
         skipped |= (middle >= start) & (middle <= end)
-    defined = np.isfinite(residual) & ~near_edge & ~skipped[:, None]
-    error = np.where(defined, wall.error, np.inf)
+    judged = np.isfinite(residual) & ~near_edge
+    # next to a stretch not judged, the kernel sees that wall too: an edge like the others
+    defined = judged & ~ndimage.binary_dilation(skipped, iterations=margin)[:, None]
+    error = np.where(judged, wall.error, np.inf)
     significance, area = MESH_SIGNIFICANCE, np.count_nonzero(defined) * cell_axial * cell_arc
     if wall.independent and defined.any():
         significance = _significance(area, wall.kernel)
@@ -202,24 +213,37 @@ def find_defects(
     )
     located = pipe.locate(samples) if located is None else located
     fit = _BumpFit(pipe, ovality, located, beams)
-    defects, members = [], []
+    defects, members, unconfirmed = [], [], 0
     smallest = MIN_KERNELS * 2 * np.pi * wall.kernel**2
     for sign in (-1.0, 1.0):
-        labels = _wrapped_labels(defined & (sign * np.nan_to_num(residual) > limit))
-        areas = np.bincount(labels[labels >= 0]) * cell_axial * cell_arc
+        # regions over the skipped stretches too: one that reaches a branch through them
+        # is its seam; of the others, only the cells outside them are judged
+        labels = _wrapped_labels(judged & (sign * np.nan_to_num(residual) > limit))
         touching = np.unique(labels[near_branch & (labels >= 0)])
+        labels[~defined] = -1
+        areas = np.bincount(labels[labels >= 0], minlength=labels.max() + 1) * cell_axial * cell_arc
         for label in np.setdiff1d(np.flatnonzero(areas >= smallest), touching):
             cells, area = labels == label, areas[label]
             found = _defect(sign, wall, cells, area, pipe, fit)
-            if abs(found.depth) >= reported:
-                defects.append(found)
-                members.append(cells)
+            if abs(found.depth) < reported:
+                continue
+            if not abs(found.depth) >= significance * found.uncertainty:  # NaN: no bump fits
+                unconfirmed += 1
+                continue
+            defects.append(found)
+            members.append(cells)
     order = np.argsort([-abs(d.depth) for d in defects], kind="stable")
     labels = np.full(residual.shape, -1, dtype=np.int64)
     for rank, index in enumerate(order):
         labels[members[index]] = rank
     return Defects(
-        tuple(defects[i] for i in order), tuple(branches), reported, significance, labels, basis
+        tuple(defects[i] for i in order),
+        tuple(branches),
+        reported,
+        significance,
+        labels,
+        basis,
+        unconfirmed,
     )
 
 

@@ -91,8 +91,8 @@ def find_joints(
     residuals leave the wall the same way in at least `ALL_ROUND` of the sectors its
     points cover, which a dent, a deposit or a branch (one side of the pipe) does not.
     Outward it is a gap: a recess, a box in the axial position blurred by the points'
-    axial scatter (`_gap`), is fitted to the rings' excess for its position, width and
-    depth. With the scanner's `beams` (`beam_steps` of the points) the scatter is the
+    axial scatter around it (`_gap`), is fitted to the rings' excess for its position,
+    width and depth. With the scanner's `beams` (`beam_steps` of the points) the scatter is the
     range noise along the beams' axial component, which smears a narrow gap over
     centimetres; without, the noise is taken as isotropic (as for a defect's depth).
     Inward it is a bead: its size is the largest excess of three rings running. Rings
@@ -195,7 +195,9 @@ def _rings(pipe: Pipe, axial, clock, residual, blur, wall: WallMap, whole):
         if sign > 0:
             window = np.abs(np.arange(n_rings) - peak) <= half
             window &= np.isfinite(excess)
-            spread = float(np.sqrt(np.mean(blur[members] ** 2)))
+            # the points' scatter about the wall around (the noise measured on the gap itself
+            # holds the recess the smoothed wall does not follow)
+            spread = float(np.median(blur[np.abs(index - peak) <= half]))
             middle = start + step * (np.arange(n_rings)[window] + 0.5)
             gap = _gap(middle, excess[window], error[window], centre, spread, step)
             if gap is not None:

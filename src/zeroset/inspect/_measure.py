@@ -39,6 +39,10 @@ class Ovality:
         The fitted section's largest, mean and smallest diameter, metres.
     major_clock : (K,) float64
         Clock angle of the largest diameter, degrees in [0, 180).
+    offset : (K, 2) float64
+        The fitted section's centre off the centreline, metres, towards 12 and 3 o'clock
+        (the centreline's own error, at a scale finer than its knots); NaN where the data
+        do not go all round the pipe.
     """
 
     axial: np.ndarray
@@ -47,17 +51,20 @@ class Ovality:
     d_mean: np.ndarray
     d_min: np.ndarray
     major_clock: np.ndarray
+    offset: np.ndarray
 
     def __post_init__(self) -> None:
         for value in (self.axial, self.ovality, self.d_max, self.d_mean, self.d_min,
-                      self.major_clock):  # fmt: skip
+                      self.major_clock, self.offset):  # fmt: skip
             value.flags.writeable = False
 
     def section_at(self, axial, clock, otherwise: float) -> np.ndarray:
-        """(N,) radius (m) of the fitted section at `axial` (m) and `clock` (degrees): the
-        mean radius ``(D_max + D_min) / 4`` plus ``(D_max - D_min) / 4 cos(2 (clock -
-        major_clock))``, interpolated between the stations that measured one, and
-        `otherwise` where none did."""
+        """(N,) distance (m) from the centreline to the fitted section at `axial` (m) and
+        `clock` (degrees): the mean radius ``(D_max + D_min) / 4``, plus ``(D_max - D_min)
+        / 4 cos(2 (clock - major_clock))``, plus the section centre's `offset` seen at that
+        clock, interpolated between the stations that measured one, and `otherwise` where
+        none did. A defect is what leaves this section, so an error of the centreline is
+        none."""
         axial = np.asarray(axial, dtype=np.float64)
         fitted = np.isfinite(self.ovality)
         if not fitted.any():
@@ -67,8 +74,16 @@ class Ovality:
         mean = np.interp(axial, self.axial[fitted], 0.25 * (self.d_max + self.d_min)[fitted])
         cos = np.interp(axial, self.axial[fitted], (half * np.cos(angle))[fitted])
         sin = np.interp(axial, self.axial[fitted], (half * np.sin(angle))[fitted])
-        twice = np.radians(2.0 * np.asarray(clock, dtype=np.float64))
-        return mean + cos * np.cos(twice) + sin * np.sin(twice)
+        up, right = (np.interp(axial, self.axial[fitted], self.offset[fitted, i]) for i in (0, 1))
+        once = np.radians(np.asarray(clock, dtype=np.float64))
+        twice = 2.0 * once
+        return (
+            mean
+            + up * np.cos(once)
+            + right * np.sin(once)
+            + cos * np.cos(twice)
+            + sin * np.sin(twice)
+        )
 
 
 def ovality(pipe: Pipe, x, *, step: float | None = None, located=None) -> Ovality:
@@ -77,17 +92,17 @@ def ovality(pipe: Pipe, x, *, step: float | None = None, located=None) -> Ovalit
     Each station fits ``a0 + a1 cos t + b1 sin t + a2 cos 2t + b2 sin 2t`` to the distance
     from the centreline over the clock angle t, robustly (a dent does not pull it; see
     `station_fits`); a station whose data leave a sector of 22.5 degrees empty (an
-    opening, a shadow) measures none. The mean radius and the second harmonic are then
-    medians over `WINDOW` stations, so one station disturbed (a branch's seam, a defect)
-    does not set them. With ``A2 = hypot(a2, b2)`` the diameters are ``2 (a0 +- A2)``, so
-    the ovality is ``4 A2 / D_nominal``. `step` defaults to a tenth of the radius.
+    opening, a shadow) measures none. The mean radius, the centre's offset ``(a1, b1)``
+    and the second harmonic are then medians over `WINDOW` stations, so one station
+    disturbed (a branch's seam, a defect) does not set them. With ``A2 = hypot(a2, b2)``
+    the diameters are ``2 (a0 +- A2)``, so the ovality is ``4 A2 / D_nominal``. `step`
+    defaults to a tenth of the radius.
     """
     if located is None:
         located = pipe.locate(np.asarray(x, dtype=np.float64))
     fits = station_fits(pipe, located, step=step)
     complete = fits["complete"]
-    a0, a2, b2 = (np.where(complete, fits["coef"][:, i], np.nan) for i in (0, 3, 4))
-    a0, a2, b2 = _running_median(a0), _running_median(a2), _running_median(b2)
+    a0, a1, b1, a2, b2 = (_running_median(np.where(complete, c, np.nan)) for c in fits["coef"].T)
     amplitude = np.hypot(a2, b2)
     return Ovality(
         axial=fits["axial"],
@@ -96,6 +111,7 @@ def ovality(pipe: Pipe, x, *, step: float | None = None, located=None) -> Ovalit
         d_mean=2.0 * a0,
         d_min=2.0 * (a0 - amplitude),
         major_clock=np.mod(0.5 * np.degrees(np.arctan2(b2, a2)), 180.0),
+        offset=np.stack([a1, b1], axis=1),
     )
 
 
