@@ -117,9 +117,6 @@ class Defects:
         Index into `defects` of each cell of the wall map, -1 for none.
     basis : str
         What the threshold came from, in words (with its figures in mm).
-    unconfirmed : int
-        Regions beyond the cells' limit and the threshold that their own bump fit did not
-        confirm (see `find_defects`): not reported.
     """
 
     defects: tuple[Defect, ...]
@@ -128,7 +125,6 @@ class Defects:
     significance: float
     labels: np.ndarray
     basis: str = ""
-    unconfirmed: int = 0
 
     def __post_init__(self) -> None:
         self.labels.flags.writeable = False
@@ -155,23 +151,20 @@ def find_defects(
     samples, `MESH_SIGNIFICANCE` robust deviations of the wall. Connected defective cells, all
     inward or all outward, make a region (the clock wraps round); regions smaller than
     `MIN_KERNELS` kernel areas are noise. Cells where the samples leave the wall outward
-    (`BRANCH`) are a branch; with the cells without data next to them (its opening) and
-    `BRANCH_MARGIN` radii around, a region touching them is part of it. Cells within
+    (`BRANCH`) are a branch; with the cells without data next to them (its opening), the
+    outward cells beyond the threshold joined to them (its seam) and `BRANCH_MARGIN` radii
+    around, a region touching them is part of it. Cells within
     `EDGE_KERNELS` kernels of cells without data (the open ends, a branch's opening, a
     shadow) or of the stretches `excluded` are not judged.
 
     The depth and position of each defect come from a raised-cosine bump, plus a
     constant, fitted by least squares to the residuals of the `samples` (N, 3) around it;
-    its uncertainty is that fit's standard error. With the scanner's `beams` (`beam_steps` of
+    its uncertainty is that fit's standard error, and the section's own uncertainty there
+    (`Ovality.section_error`). With the scanner's `beams` (`beam_steps` of
     the samples, a row of NaN where unknown) the bump is fitted along them, where the
     range noise lies (see `_BumpFit.bump`). Defects shallower than `threshold` (metres;
     default the median over the wall of the residual a cell needs to be significant) are
-    not reported, nor those the bump does not confirm: whose fitted depth is not as many
-    of its own standard errors deep as a cell needed (or to which no bump fits). The
-    cells' errors hold the points' noise only; a region that the model's own errors
-    raised (a centreline that cannot follow a bend's start, a section seen from afar)
-    is broad and shallow, and the bump fitted to its points, with their scatter, does
-    not stand out. `located` is ``pipe.locate(samples)`` when already computed. Cells in
+    not reported. `located` is ``pipe.locate(samples)`` when already computed. Cells in
     the axial stretches `excluded` ((start, end) pairs, metres: ring features, and
     stations whose sections the fit does not explain) are not judged at all.
     """
@@ -207,13 +200,17 @@ def find_defects(
     openings = _wrapped_labels(leaving | ~np.isfinite(residual))
     branching = np.unique(openings[leaving])
     branches = [_branch(wall, openings == label, cell_axial * cell_arc) for label in branching]
+    # its seam: the outward cells beyond the threshold that join its opening (the branch's
+    # own wall, seen within `OFF_WALL` of the pipe's, reaches a branch's radius or so)
+    opening = np.isin(openings, branching)
+    seam = _wrapped_labels(opening | (np.nan_to_num(residual) > reported))
     near_branch = ndimage.binary_dilation(
-        np.isin(openings, branching),
+        np.isin(seam, np.unique(seam[opening])),
         iterations=int(np.ceil(BRANCH_MARGIN * pipe.radius / cell_axial)),
     )
     located = pipe.locate(samples) if located is None else located
     fit = _BumpFit(pipe, ovality, located, beams)
-    defects, members, unconfirmed = [], [], 0
+    defects, members = [], []
     smallest = MIN_KERNELS * 2 * np.pi * wall.kernel**2
     for sign in (-1.0, 1.0):
         # regions over the skipped stretches too: one that reaches a branch through them
@@ -225,13 +222,9 @@ def find_defects(
         for label in np.setdiff1d(np.flatnonzero(areas >= smallest), touching):
             cells, area = labels == label, areas[label]
             found = _defect(sign, wall, cells, area, pipe, fit)
-            if abs(found.depth) < reported:
-                continue
-            if not abs(found.depth) >= significance * found.uncertainty:  # NaN: no bump fits
-                unconfirmed += 1
-                continue
-            defects.append(found)
-            members.append(cells)
+            if abs(found.depth) >= reported:
+                defects.append(found)
+                members.append(cells)
     order = np.argsort([-abs(d.depth) for d in defects], kind="stable")
     labels = np.full(residual.shape, -1, dtype=np.int64)
     for rank, index in enumerate(order):
@@ -243,7 +236,6 @@ def find_defects(
         significance,
         labels,
         basis,
-        unconfirmed,
     )
 
 
@@ -334,6 +326,8 @@ def _defect(sign, wall: WallMap, cells, area, pipe: Pipe, fit: _BumpFit) -> Defe
         extent=(end - start, width),
         kernel=wall.kernel,
     )
+    # the depth is measured from the section, and is no surer than it
+    uncertainty = float(np.hypot(uncertainty, fit.ovality.section_error(axial, clock)))
     return Defect(
         kind="dent" if sign < 0 else "bulge",
         axial=axial,
@@ -375,7 +369,7 @@ class _BumpFit:
         self.axial, self.clock = axial[order], clock[order]
         self.residual = distance[order] - ovality.section_at(self.axial, self.clock, pipe.radius)
         self.steps = None if steps is None else steps[order]
-        self.pipe = pipe
+        self.pipe, self.ovality = pipe, ovality
 
     def bump(self, axial, clock, peak, *, extent, kernel) -> tuple[float, float, float, float]:
         """Axial, clock, depth and its standard error of a bump fitted to the residuals

@@ -174,8 +174,6 @@ def inspection_summary(inspection: Inspection) -> dict:
         one dict per `Unreliable` stretch; ``threshold``, the smallest depth judged a defect
         (metres), also as ``threshold_mm``, and ``threshold_basis``, what it came from, in
         words; ``significance``, the standard errors a cell's residual needed to count;
-        ``unconfirmed``, the regions beyond it that their own bump fit did not confirm
-        (not reported, see `find_defects`);
         ``stations``, the diameters and ovality ``(D_max - D_min) / D_nominal`` over the
         stations (`station_summary`, mm and %); ``defects``, one dict per `Defect`, deepest
         first, with its fields (metres, degrees, square metres, percent), its ``number``
@@ -196,7 +194,6 @@ def inspection_summary(inspection: Inspection) -> dict:
         "threshold_mm": 1000.0 * found.threshold,
         "threshold_basis": found.basis,
         "significance": found.significance,
-        "unconfirmed": found.unconfirmed,
         "stations": station_summary(inspection.ovality),
         "defects": [
             {
@@ -295,11 +292,6 @@ def inspection_lines(inspection: Inspection) -> list[str]:
     )
     if facts["threshold_basis"]:
         lines.append(f"            threshold: {facts['threshold_basis']}")
-    if facts["unconfirmed"]:
-        lines.append(
-            f"            {facts['unconfirmed']} more region(s) beyond it not reported: the bump "
-            "fitted to their points was not as significant (a misfit of the model, not a defect)"
-        )
     lines.extend(_defect_line(row) for row in defect_rows(inspection))
     if facts["joints"]:
         lines.append(f"joints      {len(facts['joints'])}")

@@ -43,6 +43,10 @@ class Ovality:
         The fitted section's centre off the centreline, metres, towards 12 and 3 o'clock
         (the centreline's own error, at a scale finer than its knots); NaN where the data
         do not go all round the pipe.
+    scatter : (K, 5) float64
+        Each station's own fit (``a0, a1, b1, a2, b2``, see `ovality`) less the running
+        medians the section is made of, metres: how far the section is from what the
+        station alone shows (`section_error`); NaN where the data do not go all round.
     """
 
     axial: np.ndarray
@@ -52,10 +56,11 @@ class Ovality:
     d_min: np.ndarray
     major_clock: np.ndarray
     offset: np.ndarray
+    scatter: np.ndarray
 
     def __post_init__(self) -> None:
         for value in (self.axial, self.ovality, self.d_max, self.d_mean, self.d_min,
-                      self.major_clock, self.offset):  # fmt: skip
+                      self.major_clock, self.offset, self.scatter):  # fmt: skip
             value.flags.writeable = False
 
     def section_at(self, axial, clock, otherwise: float) -> np.ndarray:
@@ -85,6 +90,28 @@ class Ovality:
             + sin * np.sin(twice)
         )
 
+    def section_error(self, axial, clock) -> np.ndarray:
+        """(N,) how uncertain the section is at `axial` (m) and `clock` (degrees), metres:
+        the distance by which the station's own fit there departs from it (`scatter`),
+        interpolated between the stations that measured one; 0 where none did.
+
+        Where the centreline cannot quite follow the wall (the start of a tight bend, a
+        section seen from afar), neighbouring stations disagree by a millimetre or so, and
+        the running medians smooth that over: a residual there is as uncertain as that. A
+        dent hardly moves its stations' robust fits, and a joint's stations are not judged.
+        """
+        axial = np.asarray(axial, dtype=np.float64)
+        fitted = np.isfinite(self.scatter).all(axis=1)
+        if not fitted.any():
+            return np.zeros(np.broadcast_shapes(axial.shape, np.shape(clock)))
+        angle = np.radians(np.asarray(clock, dtype=np.float64))
+        terms = (1.0, np.cos(angle), np.sin(angle), np.cos(2 * angle), np.sin(2 * angle))
+        total = sum(
+            np.interp(axial, self.axial[fitted], self.scatter[fitted, i]) * term
+            for i, term in enumerate(terms)
+        )
+        return np.abs(total)
+
 
 def ovality(pipe: Pipe, x, *, step: float | None = None, located=None) -> Ovality:
     """Ovality of the wall positions `x` (N, 3) in stations of `step` metres along `pipe`.
@@ -102,7 +129,9 @@ def ovality(pipe: Pipe, x, *, step: float | None = None, located=None) -> Ovalit
         located = pipe.locate(np.asarray(x, dtype=np.float64))
     fits = station_fits(pipe, located, step=step)
     complete = fits["complete"]
-    a0, a1, b1, a2, b2 = (_running_median(np.where(complete, c, np.nan)) for c in fits["coef"].T)
+    own = np.where(complete[:, None], fits["coef"], np.nan)
+    medians = np.stack([_running_median(c) for c in own.T], axis=1)
+    a0, a1, b1, a2, b2 = medians.T
     amplitude = np.hypot(a2, b2)
     return Ovality(
         axial=fits["axial"],
@@ -112,6 +141,7 @@ def ovality(pipe: Pipe, x, *, step: float | None = None, located=None) -> Ovalit
         d_min=2.0 * (a0 - amplitude),
         major_clock=np.mod(0.5 * np.degrees(np.arctan2(b2, a2)), 180.0),
         offset=np.stack([a1, b1], axis=1),
+        scatter=own - medians,
     )
 
 

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy import ndimage
@@ -45,7 +45,9 @@ class WallMap:
         Smoothed deviation from the fitted section (its mean radius and ovality, see
         `Ovality.section_at`): what defects are judged on.
     error : (A, C) float64
-        Standard error of `residual`, metres.
+        Standard error of `residual`, metres: with scan points, their noise over the root
+        of their effective number, and the section's own uncertainty
+        (`Ovality.section_error`).
     noise : (A, C) float64
         The samples' spread about the local surface, metres: with scan points, their
         residuals about the smoothed wall (the range noise as the radius sees it); with a
@@ -114,8 +116,10 @@ def unroll(
     error is the points' own noise about the local surface (`_local_noise`: their
     residuals about the smoothed wall, which follows joints, ovality and dents, so real
     geometry does not count as noise) over the square root of the effective number of
-    samples; when they are not (a mesh's vertices, smooth by construction, whose errors
-    are neighbours' errors too) it is the robust spread of all the samples' residuals.
+    samples, and the uncertainty of the section the residual is measured from
+    (`Ovality.section_error`), in quadrature; when they are not (a mesh's vertices, smooth
+    by construction, whose errors are neighbours' errors too) it is the robust spread of
+    all the samples' residuals.
     `kernel` is the kernel's standard deviation in metres, default `KERNEL` radii;
     `located` is ``pipe.locate(samples)`` when already computed.
 
@@ -134,7 +138,7 @@ def unroll(
     residual = distance[keep] - ovality.section_at(axial, clock, pipe.radius)
     wall = _map(pipe, axial, clock, deviation, residual, kernel, independent)
     if beams is None:
-        return wall
+        return _with_section_error(wall, ovality)
     s_a, s_b, s_r = beams[keep].T
     rows, cols = wall.cells(axial, clock)
     smoothed = np.where(rows >= 0, wall.residual[rows, cols], np.nan)
@@ -143,7 +147,21 @@ def unroll(
     step = np.where(np.isfinite(step) & (np.abs(s_r) > 0.2), step, 0.0)
     moved_axial = axial + step * s_a
     moved_clock = (clock + np.degrees(step * s_b / pipe.radius)) % 360.0
-    return _map(pipe, moved_axial, moved_clock, deviation, residual, kernel, independent)
+    wall = _map(pipe, moved_axial, moved_clock, deviation, residual, kernel, independent)
+    return _with_section_error(wall, ovality)
+
+
+def _with_section_error(wall: WallMap, ovality: Ovality) -> WallMap:
+    """`wall` with the section's own uncertainty (`Ovality.section_error`) added to each
+    cell's error of scan points, in quadrature: the residual is measured from the section,
+    and is no surer than it. (A mesh's error, the whole wall's spread about the sections,
+    holds it already.)"""
+    if not wall.independent:
+        return wall
+    axial = 0.5 * (wall.axial_edges[:-1] + wall.axial_edges[1:])
+    clock = 0.5 * (wall.clock_edges[:-1] + wall.clock_edges[1:])
+    section = ovality.section_error(axial[:, None], clock[None, :])
+    return replace(wall, error=np.hypot(wall.error, section))
 
 
 def _map(pipe, axial, clock, deviation, residual, kernel, independent) -> WallMap:
