@@ -30,7 +30,7 @@ from zeroset.inspect import (
     write_joints_csv,
     write_ovality_csv,
 )
-from zeroset.inspect._centreline import _straight_run
+from zeroset.inspect._centreline import MAX_FIT_VERTICES, _evenly, _straight_run
 from zeroset.inspect._defects import _significance
 from zeroset.inspect._files import length_agrees
 from zeroset.inspect._pictures import (
@@ -654,6 +654,22 @@ def test_the_centreline_follows_bends_and_runs_the_way_the_robot_went(bent_run):
     assert first[0][0] == pytest.approx(stations[0], abs=0.05)
     assert inspection.pipe.length == pytest.approx(inspection.pipe.extent, rel=0.02)
     assert inspection.defects.defects == () and inspection.joints == ()
+
+
+def test_a_large_scan_is_fitted_on_points_chosen_evenly_over_the_wall(rng):
+    """A scan far denser near its stations keeps every point of its thin tail and of the
+    sector its scan lines leave sparse, where a random choice would keep a third."""
+    dense, tail, sparse = 300_000, 600, 3_000
+    axial = np.r_[rng.uniform(0.0, 2.0, dense + sparse), rng.uniform(2.0, 2.3, tail)]
+    clock = np.r_[rng.uniform(22.5, 360.0, dense), rng.uniform(0.0, 22.5, sparse + tail)]
+    axial[:10] = np.nan  # beyond the centreline
+    chosen = _evenly((axial, clock, np.full(axial.size, 0.2)), 0.02, rng)
+    assert chosen.size <= MAX_FIT_VERTICES and np.all(np.diff(chosen) > 0)
+    assert np.isin(np.arange(dense, dense + sparse + tail), chosen).all()
+    known = chosen[np.isfinite(axial[chosen])]
+    cells = np.floor(axial[known] / 0.02) * 16 + clock[known] // 22.5
+    per_cell = np.unique(cells, return_counts=True)[1]
+    assert per_cell.max() <= 2 * np.median(per_cell)  # the dense cells all hold the same
 
 
 def test_a_stretch_whose_wall_is_no_circle_is_unreliable_and_not_judged():

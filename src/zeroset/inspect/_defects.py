@@ -11,7 +11,7 @@ from ._centreline import Pipe
 from ._measure import Ovality
 from ._unrolled import WallMap
 
-__all__ = ["Branch", "Defect", "Defects", "find_defects"]
+__all__ = ["Branch", "Defect", "Defects", "find_defects", "smallest_depth"]
 
 #: Scan points: a cell is judged when its residual exceeds so many standard errors that
 #: noise alone would make this many regions beyond them over the whole wall, on average.
@@ -171,25 +171,10 @@ def find_defects(
     residual = wall.residual
     cell_axial = wall.axial_edges[1] - wall.axial_edges[0]
     cell_arc = np.radians(wall.clock_edges[1]) * pipe.radius
-    margin = int(np.ceil(EDGE_KERNELS * wall.kernel / cell_axial))
-    middle = 0.5 * (wall.axial_edges[:-1] + wall.axial_edges[1:])
-    beyond = (middle < 0.0) | (middle > pipe.length)  # the ends' rims are where data stop
-    empty = np.pad(~np.isfinite(residual) | beyond[:, None], ((1, 1), (0, 0)), constant_values=True)
-    near_edge = ndimage.binary_dilation(
-        empty, structure=np.ones((3, 3)), iterations=margin, border_value=0
-    )[1:-1]
-    skipped = np.zeros(middle.shape, dtype=bool)
-    for start, end in excluded:
-        skipped |= (middle >= start) & (middle <= end)
-    judged = np.isfinite(residual) & ~near_edge
-    # next to a stretch not judged, the kernel sees that wall too: an edge like the others
-    defined = judged & ~ndimage.binary_dilation(skipped, iterations=margin)[:, None]
+    judged, defined, skipped = _cells(wall, pipe, excluded)
     error = np.where(judged, wall.error, np.inf)
-    significance, area = MESH_SIGNIFICANCE, np.count_nonzero(defined) * cell_axial * cell_arc
-    if wall.independent and defined.any():
-        significance = _significance(area, wall.kernel)
+    significance, area, reported = _limit(wall, pipe, defined)
     limit = significance * error
-    reported = float(np.median(limit[defined])) if defined.any() else 0.0
     basis = _basis(wall, defined, significance, area, reported)
     if threshold is not None:
         reported = float(threshold)
@@ -237,6 +222,48 @@ def find_defects(
         labels,
         basis,
     )
+
+
+def smallest_depth(wall: WallMap, pipe: Pipe) -> float:
+    """The threshold (m) `find_defects` reports on `wall` with nothing excluded: the
+    smallest change of the wall the inspection tells from the noise there."""
+    return _limit(wall, pipe, _cells(wall, pipe, ())[1])[2]
+
+
+def _cells(wall: WallMap, pipe: Pipe, excluded) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(A, C) bool: the cells of `wall` that can be judged (data all round their kernel:
+    `EDGE_KERNELS` from cells without data and the run's ends), and those that are (also
+    that far from the axial stretches `excluded`); (A,) bool: the rows `excluded`."""
+    cell_axial = wall.axial_edges[1] - wall.axial_edges[0]
+    margin = int(np.ceil(EDGE_KERNELS * wall.kernel / cell_axial))
+    middle = 0.5 * (wall.axial_edges[:-1] + wall.axial_edges[1:])
+    beyond = (middle < 0.0) | (middle > pipe.length)  # the ends' rims are where data stop
+    empty = np.pad(
+        ~np.isfinite(wall.residual) | beyond[:, None], ((1, 1), (0, 0)), constant_values=True
+    )
+    near_edge = ndimage.binary_dilation(
+        empty, structure=np.ones((3, 3)), iterations=margin, border_value=0
+    )[1:-1]
+    skipped = np.zeros(middle.shape, dtype=bool)
+    for start, end in excluded:
+        skipped |= (middle >= start) & (middle <= end)
+    judged = np.isfinite(wall.residual) & ~near_edge
+    # next to a stretch not judged, the kernel sees that wall too: an edge like the others
+    defined = judged & ~ndimage.binary_dilation(skipped, iterations=margin)[:, None]
+    return judged, defined, skipped
+
+
+def _limit(wall: WallMap, pipe: Pipe, defined: np.ndarray) -> tuple[float, float, float]:
+    """The standard errors a cell needs (`_significance`, or `MESH_SIGNIFICANCE` on a
+    mesh), the area judged (m^2) and the threshold (m): the median over the `defined`
+    cells of the residual they need."""
+    cell_axial = wall.axial_edges[1] - wall.axial_edges[0]
+    area = np.count_nonzero(defined) * cell_axial * np.radians(wall.clock_edges[1]) * pipe.radius
+    significance = MESH_SIGNIFICANCE
+    if wall.independent and defined.any():
+        significance = _significance(area, wall.kernel)
+    reported = float(np.median(significance * wall.error[defined])) if defined.any() else 0.0
+    return significance, area, reported
 
 
 def _basis(wall: WallMap, defined, significance: float, area: float, reported: float) -> str:

@@ -13,7 +13,7 @@ from ..evaluate import sample_surface
 from ..topology import face_area_vectors
 from ..types import Mesh
 from ._centreline import Pipe, beam_steps, check_stations, fit_pipe
-from ._defects import Defects, find_defects
+from ._defects import Defects, find_defects, smallest_depth
 from ._frame import UP
 from ._joints import Joint, find_joints, joint_spans
 from ._measure import Ovality, deviation, ovality
@@ -152,7 +152,8 @@ def inspect_pipe(
     )
     timings["wall map"] = time.perf_counter() - start
     start = time.perf_counter()
-    joints = find_joints(pipe, found_ovality, wall, located, beams)
+    smallest = smallest_depth(wall, pipe) if threshold is None else float(threshold)
+    joints = find_joints(pipe, found_ovality, wall, located, beams, smallest=smallest)
     spans = joint_spans(joints, pipe, wall.kernel)
     pipe = replace(pipe, unreliable=check_stations(pipe, located, wall.noise_along, excused=spans))
     timings["joints and checks"] = time.perf_counter() - start

@@ -9,7 +9,7 @@ import numpy as np
 from scipy import ndimage, optimize, special
 
 from ._centreline import SECTORS, Pipe, station_fits
-from ._defects import BRANCH
+from ._defects import BRANCH, FIT_EVALUATIONS, MAX_BUMP_POINTS, _along_beams
 from ._frame import clock_angles
 from ._measure import Ovality
 from ._unrolled import OFF_WALL, WallMap
@@ -72,7 +72,7 @@ class Joint:
 
 
 def find_joints(
-    pipe: Pipe, ovality: Ovality, wall: WallMap, located, beams=None
+    pipe: Pipe, ovality: Ovality, wall: WallMap, located, beams=None, *, smallest: float = 0.0
 ) -> tuple[Joint, ...]:
     """Find the ring features of a pipe's wall: gaps, beads and offsets, by axial position.
 
@@ -95,7 +95,8 @@ def find_joints(
     width and depth. With the scanner's `beams` (`beam_steps` of the points) the scatter is the
     range noise along the beams' axial component, which smears a narrow gap over
     centimetres; without, the noise is taken as isotropic (as for a defect's depth).
-    Inward it is a bead: its size is the largest excess of three rings running. Rings
+    Inward it is a bead: its size is the largest excess of three rings running; with the
+    beams, a raised cosine in the axial position fitted along them (`_bead`). Rings
     within an offset's reach are part of the offset (its step leaves the rings' means as
     it crosses them).
 
@@ -112,6 +113,12 @@ def find_joints(
     ``MIN_OFFSET r / OFFSET_REACH^2`` (below that, where a bend meets a leg, the cubic
     misses the centres by less than half the smallest step reported); offsets in bends
     are not.
+
+    Features that change the wall's radius by less than `smallest` (metres: a bead's
+    height, a gap's depth, an offset's step) are not reported: `inspect_pipe` passes the
+    smallest defect it reports (`smallest_depth`). The rings' means hold thousands of
+    points and tell a fraction of a millimetre from the noise, but not from the
+    section's own errors, which are of that size on a scan's far, oblique views.
     """
     axial, clock, distance = located
     keep = np.isfinite(axial)
@@ -120,8 +127,10 @@ def find_joints(
     on_wall = np.abs(residual) < OFF_WALL * pipe.radius
     axial, clock, residual = axial[on_wall], clock[on_wall], residual[on_wall]
     blur = wall.noise_along(axial)  # isotropic noise moves points along the axis as much
+    steps = None
     if beams is not None:  # range noise moves them along the beams
-        s_a, _, s_r = beams[keep][on_wall].T
+        steps = beams[keep][on_wall]
+        s_a, _, s_r = steps.T
         known = np.isfinite(s_a)
         blur[known] *= np.abs(s_a[known]) / np.maximum(np.abs(s_r[known]), 0.2)
     whole = np.isfinite(wall.residual).all(axis=1) & (wall.off_wall < BRANCH).all(axis=1)
@@ -131,10 +140,11 @@ def find_joints(
     spans = joint_spans(offsets, pipe, wall.kernel)
     rings = [
         ring
-        for ring in _rings(pipe, axial, clock, residual, blur, wall, whole)
+        for ring in _rings(pipe, axial, clock, residual, blur, steps, wall, whole)
         if not any(start <= ring.axial <= end for start, end in spans)
     ]
-    return tuple(sorted(offsets + rings, key=lambda j: j.axial))
+    found = [j for j in offsets + rings if (j.depth if j.kind == "gap" else j.size) >= smallest]
+    return tuple(sorted(found, key=lambda j: j.axial))
 
 
 def joint_spans(joints, pipe: Pipe, kernel: float) -> list[tuple[float, float]]:
@@ -154,9 +164,10 @@ def joint_spans(joints, pipe: Pipe, kernel: float) -> list[tuple[float, float]]:
     return spans
 
 
-def _rings(pipe: Pipe, axial, clock, residual, blur, wall: WallMap, whole):
+def _rings(pipe: Pipe, axial, clock, residual, blur, steps, wall: WallMap, whole):
     """Yield the gaps and beads among the rings of the wall (see `find_joints`): those
-    whose map rows are `whole` (A,) bool."""
+    whose map rows are `whole` (A,) bool; `steps` are the points' beams (`beam_steps`),
+    or None."""
     step = RING * pipe.radius
     start = float(np.min(axial))
     index = ((axial - start) / step).astype(np.int64)
@@ -176,6 +187,7 @@ def _rings(pipe: Pipe, axial, clock, residual, blur, wall: WallMap, whole):
     rows, _ = wall.cells(start + step * (np.arange(n_rings) + 0.5), np.zeros(n_rings))
     strong = (np.abs(np.nan_to_num(excess)) > z * error) & (rows >= 0) & whole[rows]
     sector = np.minimum((clock / (360.0 / SECTORS)).astype(np.int64), SECTORS - 1)
+    beads: list[float] = []  # where beads were fitted (a bead's two flanks may each start one)
     for seed in np.flatnonzero(strong):
         if not strong[seed]:
             continue  # already part of a feature
@@ -206,8 +218,51 @@ def _rings(pipe: Pipe, axial, clock, residual, blur, wall: WallMap, whole):
         three = np.convolve(np.nan_to_num(-excess), np.ones(3) / 3.0, mode="same")
         best = lo + int(np.argmax(three[lo : hi + 1]))
         uncertainty = float(np.sqrt(np.sum(error[max(best - 1, 0) : best + 2] ** 2)) / 3.0)
-        if three[best] > z * uncertainty:
-            yield Joint("bead", float(centre), float(three[best]), uncertainty)
+        if three[best] <= z * uncertainty:
+            continue
+        near = np.flatnonzero(np.abs(index - peak) <= half)
+        bead = Joint("bead", float(centre), float(three[best]), uncertainty)
+        if steps is not None:  # fitted along the beams, which an oblique view's noise blurs
+            values = residual[near] - baseline[index[near]]
+            fitted = _bead(axial[near], values, steps[near], centre, float(three[best]), pipe)
+            bead = bead if fitted is None else fitted
+        if all(abs(bead.axial - other) > 0.5 * BEAD_WIDTH * pipe.radius for other in beads):
+            beads.append(bead.axial)
+            yield bead
+
+
+def _bead(axial, values, steps, centre: float, height: float, pipe: Pipe) -> Joint | None:
+    """A bead fitted to the points at `axial` (m) with their residuals `values` (m, less
+    the rings' running median) and `steps`, their beams (`beam_steps`): a raised cosine
+    in the axial position standing into the bore, ``c - h cos^2(pi (s - a) / w)`` for
+    ``|s - a| < w / 2``, whose misfit is taken along each point's beam (as a defect's
+    bump, `_along_beams`): range noise along an oblique beam smears a bead over
+    centimetres and three rings' mean reads it low. `centre` (m) and `height` (m, the
+    rings' estimate) start it; None where it does not converge to a bead near there."""
+    known = np.flatnonzero(np.isfinite(steps).all(axis=1))
+    known = known[:: max(1, -(-known.size // MAX_BUMP_POINTS))]  # evenly, at most so many
+    a, values, steps = axial[known] - centre, values[known], steps[known].T
+    if values.size < 20:
+        return None
+    b, wide = np.zeros_like(a), np.log(1e3)  # all round: no change with the clock
+
+    def bump(q):  # (c, d, a0, log half-width) as a defect's bump, constant round the pipe
+        return np.array([q[0], q[1], q[2], 0.0, q[3], wide])
+
+    scale = 3.0 * float(np.std(values))
+    found = optimize.least_squares(
+        lambda q: _along_beams(bump(q), a, b, values, steps),
+        np.array([0.0, -height, 0.0, np.log(0.5 * BEAD_WIDTH * pipe.radius)]),
+        loss="soft_l1",
+        f_scale=scale,
+        max_nfev=FIT_EVALUATIONS,
+    )
+    _, d, shift, _ = found.x
+    if not (found.success and d < 0 and abs(shift) <= BASELINE * pipe.radius):
+        return None
+    variance = float(found.fun @ found.fun) / max(values.size - 4, 1)
+    covariance = variance * np.linalg.pinv(found.jac.T @ found.jac)
+    return Joint("bead", float(centre + shift), float(-d), float(np.sqrt(covariance[1, 1])))
 
 
 def _gap(axial, excess, error, centre: float, blur: float, step: float) -> Joint | None:
@@ -215,7 +270,7 @@ def _gap(axial, excess, error, centre: float, blur: float, step: float) -> Joint
     recess of depth d and width w centred at a, ``d (Phi((s - a + w/2) / b) - Phi((s - a
     - w/2) / b))``, the box blurred by the axial scatter b of the points (`blur`, from
     the range noise along oblique beams, and the rings' length); None where it does not
-    converge to a recess."""
+    converge to a recess at least a ring (`step`) wide."""
     b = float(np.hypot(blur, step / np.sqrt(12.0)))
 
     def profile(q):
@@ -229,8 +284,9 @@ def _gap(axial, excess, error, centre: float, blur: float, step: float) -> Joint
     start = np.array([centre, max(area / max(peak, 1e-9), step), peak])
     found = optimize.least_squares(lambda q: (profile(q) - excess) / error, start)
     a, w, d = found.x
-    if not (found.success and w > 0 and d > 0 and abs(a - centre) < 0.5 * (axial[-1] - axial[0])):
-        return None
+    inside = abs(a - centre) < 0.5 * (axial[-1] - axial[0])
+    if not (found.success and w >= step and d > 0 and inside):
+        return None  # no recess, or one narrower than a ring: not resolved
     covariance = np.linalg.pinv(found.jac.T @ found.jac) * max(
         float(found.fun @ found.fun) / max(excess.size - 3, 1), 1.0
     )
