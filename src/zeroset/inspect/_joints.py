@@ -238,16 +238,17 @@ def _bead(axial, values, steps, centre: float, height: float, pipe: Pipe) -> Joi
     ``|s - a| < w / 2``, whose misfit is taken along each point's beam (as a defect's
     bump, `_along_beams`): range noise along an oblique beam smears a bead over
     centimetres and three rings' mean reads it low. `centre` (m) and `height` (m, the
-    rings' estimate) start it; None where it does not converge to a bead near there."""
+    rings' estimate) start it; None where it does not converge to a bead near there, at
+    least a ring wide and no higher than the points on the wall reach (`OFF_WALL`)."""
     known = np.flatnonzero(np.isfinite(steps).all(axis=1))
     known = known[:: max(1, -(-known.size // MAX_BUMP_POINTS))]  # evenly, at most so many
     a, values, steps = axial[known] - centre, values[known], steps[known].T
     if values.size < 20:
         return None
-    b, wide = np.zeros_like(a), np.log(1e3)  # all round: no change with the clock
+    b, around = np.zeros_like(a), np.log(1e3)  # all round: no change with the clock
 
     def bump(q):  # (c, d, a0, log half-width) as a defect's bump, constant round the pipe
-        return np.array([q[0], q[1], q[2], 0.0, q[3], wide])
+        return np.array([q[0], q[1], q[2], 0.0, q[3], around])
 
     scale = 3.0 * float(np.std(values))
     found = optimize.least_squares(
@@ -257,8 +258,10 @@ def _bead(axial, values, steps, centre: float, height: float, pipe: Pipe) -> Joi
         f_scale=scale,
         max_nfev=FIT_EVALUATIONS,
     )
-    _, d, shift, _ = found.x
-    if not (found.success and d < 0 and abs(shift) <= BASELINE * pipe.radius):
+    _, d, shift, half_width = found.x
+    resolved = 2.0 * np.exp(half_width) >= RING * pipe.radius  # a spike on no point is none
+    on_wall = -OFF_WALL * pipe.radius < d < 0  # standing into the bore, as the points do
+    if not (found.success and on_wall and resolved and abs(shift) <= BASELINE * pipe.radius):
         return None
     variance = float(found.fun @ found.fun) / max(values.size - 4, 1)
     covariance = variance * np.linalg.pinv(found.jac.T @ found.jac)

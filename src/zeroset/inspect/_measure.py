@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._centreline import Pipe, station_fits
+from ._centreline import Pipe, _without_ovality, station_fits
 
 __all__ = ["Ovality", "deviation", "ovality"]
 
@@ -41,12 +41,13 @@ class Ovality:
         Clock angle of the largest diameter, degrees in [0, 180).
     offset : (K, 2) float64
         The fitted section's centre off the centreline, metres, towards 12 and 3 o'clock
-        (the centreline's own error, at a scale finer than its knots); NaN where the data
-        do not go all round the pipe.
+        (the centreline's own error, at a scale finer than its knots); NaN where no
+        section is fitted.
     scatter : (K, 5) float64
         Each station's own fit (``a0, a1, b1, a2, b2``, see `ovality`) less the running
         medians the section is made of, metres: how far the section is from what the
-        station alone shows (`section_error`); NaN where the data do not go all round.
+        station alone shows (`section_error`); NaN where not fitted (the centre's
+        columns), or where the data do not go all round (the others).
     """
 
     axial: np.ndarray
@@ -70,25 +71,11 @@ class Ovality:
         clock, interpolated between the stations that measured one, and `otherwise` where
         none did. A defect is what leaves this section, so an error of the centreline is
         none."""
-        axial = np.asarray(axial, dtype=np.float64)
-        fitted = np.isfinite(self.ovality)
-        if not fitted.any():
-            return np.full(axial.shape, float(otherwise))
         half = 0.25 * (self.d_max - self.d_min)
         angle = np.radians(2.0 * self.major_clock)
-        mean = np.interp(axial, self.axial[fitted], 0.25 * (self.d_max + self.d_min)[fitted])
-        cos = np.interp(axial, self.axial[fitted], (half * np.cos(angle))[fitted])
-        sin = np.interp(axial, self.axial[fitted], (half * np.sin(angle))[fitted])
-        up, right = (np.interp(axial, self.axial[fitted], self.offset[fitted, i]) for i in (0, 1))
-        once = np.radians(np.asarray(clock, dtype=np.float64))
-        twice = 2.0 * once
-        return (
-            mean
-            + up * np.cos(once)
-            + right * np.sin(once)
-            + cos * np.cos(twice)
-            + sin * np.sin(twice)
-        )
+        coef = np.stack([0.25 * (self.d_max + self.d_min), *self.offset.T,
+                         half * np.cos(angle), half * np.sin(angle)], axis=1)  # fmt: skip
+        return _harmonics(axial, clock, self.axial, coef, otherwise)
 
     def section_error(self, axial, clock) -> np.ndarray:
         """(N,) how uncertain the section is at `axial` (m) and `clock` (degrees), metres:
@@ -100,17 +87,7 @@ class Ovality:
         the running medians smooth that over: a residual there is as uncertain as that. A
         dent hardly moves its stations' robust fits, and a joint's stations are not judged.
         """
-        axial = np.asarray(axial, dtype=np.float64)
-        fitted = np.isfinite(self.scatter).all(axis=1)
-        if not fitted.any():
-            return np.zeros(np.broadcast_shapes(axial.shape, np.shape(clock)))
-        angle = np.radians(np.asarray(clock, dtype=np.float64))
-        terms = (1.0, np.cos(angle), np.sin(angle), np.cos(2 * angle), np.sin(2 * angle))
-        total = sum(
-            np.interp(axial, self.axial[fitted], self.scatter[fitted, i]) * term
-            for i, term in enumerate(terms)
-        )
-        return np.abs(total)
+        return np.abs(_harmonics(axial, clock, self.axial, self.scatter, 0.0))
 
 
 def ovality(pipe: Pipe, x, *, step: float | None = None, located=None) -> Ovality:
@@ -119,17 +96,21 @@ def ovality(pipe: Pipe, x, *, step: float | None = None, located=None) -> Ovalit
     Each station fits ``a0 + a1 cos t + b1 sin t + a2 cos 2t + b2 sin 2t`` to the distance
     from the centreline over the clock angle t, robustly (a dent does not pull it; see
     `station_fits`); a station whose data leave a sector of 22.5 degrees empty (an
-    opening, a shadow) measures none. The mean radius, the centre's offset ``(a1, b1)``
-    and the second harmonic are then medians over `WINDOW` stations, so one station
-    disturbed (a branch's seam, a defect) does not set them. With ``A2 = hypot(a2, b2)``
-    the diameters are ``2 (a0 +- A2)``, so the ovality is ``4 A2 / D_nominal``. `step`
-    defaults to a tenth of the radius.
+    opening, a shadow) measures no radius or ovality, only its centre ``(a1, b1)``, by a
+    circle fitted to the distances less the ovality around (as the centreline is). The
+    mean radius, the centre and the second harmonic are then medians over `WINDOW`
+    stations, so one station disturbed (a branch's seam, a defect) does not set them.
+    With ``A2 = hypot(a2, b2)`` the diameters are ``2 (a0 +- A2)``, so the ovality is ``4
+    A2 / D_nominal``. `step` defaults to a tenth of the radius.
     """
     if located is None:
         located = pipe.locate(np.asarray(x, dtype=np.float64))
     fits = station_fits(pipe, located, step=step)
+    circles = station_fits(pipe, _without_ovality(located, fits), step=step, oval=False)
     complete = fits["complete"]
     own = np.where(complete[:, None], fits["coef"], np.nan)
+    centred = ~complete & circles["fitted"]
+    own[centred, 1:3] = circles["coef"][centred, 1:3]
     medians = np.stack([_running_median(c) for c in own.T], axis=1)
     a0, a1, b1, a2, b2 = medians.T
     amplitude = np.hypot(a2, b2)
@@ -143,6 +124,24 @@ def ovality(pipe: Pipe, x, *, step: float | None = None, located=None) -> Ovalit
         offset=np.stack([a1, b1], axis=1),
         scatter=own - medians,
     )
+
+
+def _harmonics(axial, clock, stations, coef, first: float) -> np.ndarray:
+    """``c0 + c1 cos t + c2 sin t + c3 cos 2t + c4 sin 2t`` at `axial` (m) and clock t
+    (`clock`, degrees; the two broadcast), each coefficient of `coef` (K, 5) given at the
+    `stations` (K,) (m) and interpolated between its finite values: `first` for c0 where
+    it has none, 0 for the others."""
+    axial = np.asarray(axial, dtype=np.float64)
+    once = np.radians(np.asarray(clock, dtype=np.float64))
+    terms = (1.0, np.cos(once), np.sin(once), np.cos(2 * once), np.sin(2 * once))
+    total = np.zeros(np.broadcast_shapes(axial.shape, once.shape))
+    for column, term, default in zip(coef.T, terms, (first, 0.0, 0.0, 0.0, 0.0), strict=True):
+        known = np.isfinite(column)
+        if known.any():
+            total += np.interp(axial, stations[known], column[known]) * term
+        else:
+            total += default * term
+    return total
 
 
 def _running_median(values: np.ndarray) -> np.ndarray:
