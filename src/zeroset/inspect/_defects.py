@@ -215,12 +215,7 @@ def find_defects(
     for rank, index in enumerate(order):
         labels[members[index]] = rank
     return Defects(
-        tuple(defects[i] for i in order),
-        tuple(branches),
-        reported,
-        significance,
-        labels,
-        basis,
+        tuple(defects[i] for i in order), tuple(branches), reported, significance, labels, basis
     )
 
 
