@@ -7,6 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage, optimize, special
 
+from ._bump import along_beams, raised_cosine
 from ._centreline import Pipe
 from ._measure import Ovality
 from ._unrolled import WallMap
@@ -405,7 +406,7 @@ class _BumpFit:
         and, as a bump bunches the beams on its near flank, biases the residuals at each
         place (errors in the variables). With the beams known, the bump is therefore
         fitted again where the noise is, along the beams: each sample's misfit is the
-        distance along its beam to the bump (`_along_beams`), which is unbiased. Without
+        distance along its beam to the bump (`along_beams`), which is unbiased. Without
         them the depth is corrected for the blur to second order, ``d pi^2 / 4 (s_a^2 /
         wa^2 + s_b^2 / wb^2)``, taking the noise as isotropic: s_a^2 and s_b^2, the
         variances of the shifts along and round the wall, are both the variance of the
@@ -424,7 +425,7 @@ class _BumpFit:
             return float(axial), float(clock), float(peak), float("nan")
 
         def misfit(q):
-            return values - q[0] - q[1] * _raised_cosine(q, a, b)[0]
+            return values - q[0] - q[1] * raised_cosine(q, a, b)[0]
 
         scale = 3 * np.std(values)
         found = optimize.least_squares(
@@ -434,7 +435,7 @@ class _BumpFit:
         if found.success and not blurred:
             steps = self.steps[lo:hi][near].T
             found = optimize.least_squares(
-                lambda q: _along_beams(q, a, b, values, steps),
+                lambda q: along_beams(q, a, b, values, steps),
                 found.x,
                 loss="soft_l1",
                 f_scale=scale,
@@ -449,39 +450,9 @@ class _BumpFit:
         covariance = variance * np.linalg.pinv(found.jac.T @ found.jac)
         depth = q[0] + q[1]
         if blurred:
-            inside = _raised_cosine(q, a, b)[0] > 0
+            inside = raised_cosine(q, a, b)[0] > 0
             blur = float(np.var(found.fun[inside])) if np.count_nonzero(inside) > 1 else 0.0
             depth += q[1] * 0.25 * np.pi**2 * blur * (np.exp(-2 * q[4]) + np.exp(-2 * q[5]))
         error = np.sqrt(max(covariance[0, 0] + covariance[1, 1] + 2 * covariance[0, 1], 0.0))
         turn = np.degrees(q[3] / self.pipe.radius)
         return float(axial + q[2]), float((clock + turn) % 360.0), float(depth), float(error)
-
-
-def _raised_cosine(q, a, b) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The unit bump ``cos^2(pi sqrt(u) / 2)`` of `_BumpFit.bump` with parameters `q` at
-    (a, b), and its derivatives along a and b."""
-    wa, wb = np.exp(2 * q[4]), np.exp(2 * q[5])
-    u = (a - q[2]) ** 2 / wa + (b - q[3]) ** 2 / wb
-    root = np.sqrt(np.minimum(u, 1.0))
-    # d/du cos^2(pi sqrt(u) / 2) = -(pi^2 / 4) sinc(sqrt(u)), and 0 beyond u = 1
-    slope = np.where(u < 1.0, -0.25 * np.pi**2 * np.sinc(root), 0.0)
-    return np.cos(0.5 * np.pi * root) ** 2, 2 * slope * (a - q[2]) / wa, 2 * slope * (b - q[3]) / wb
-
-
-def _along_beams(q, a, b, values, steps, iterations: int = 4) -> np.ndarray:
-    """Signed distance (m) along each sample's beam from the sample to the wall
-    ``residual = q[0] + q[1] bump(a, b)``.
-
-    A sample at (a, b) with residual `values` moves by t along its beam to (a + t s_a,
-    b + t s_b) and residual ``values + t s_r``, `steps` = (s_a, s_b, s_r) being the beam's
-    components along, round and away from the pipe; t is found by Newton's method from 0.
-    Where a beam grazes the bump its slope is held at 0.1 at least.
-    """
-    s_a, s_b, s_r = steps
-    t = np.zeros_like(values)
-    for _ in range(iterations):
-        bump, d_a, d_b = _raised_cosine(q, a + t * s_a, b + t * s_b)
-        gap = values + t * s_r - q[0] - q[1] * bump
-        slope = s_r - q[1] * (d_a * s_a + d_b * s_b)
-        t -= gap / np.where(np.abs(slope) < 0.1, np.copysign(0.1, slope), slope)
-    return t

@@ -8,8 +8,9 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage, optimize, special
 
+from ._bump import along_beams
 from ._centreline import SECTORS, Pipe, station_fits
-from ._defects import BRANCH, FIT_EVALUATIONS, MAX_BUMP_POINTS, _along_beams
+from ._defects import BRANCH, FIT_EVALUATIONS, MAX_BUMP_POINTS
 from ._frame import clock_angles
 from ._measure import Ovality
 from ._unrolled import OFF_WALL, WallMap
@@ -236,7 +237,7 @@ def _bead(axial, values, steps, centre: float, height: float, pipe: Pipe) -> Joi
     the rings' running median) and `steps`, their beams (`beam_steps`): a raised cosine
     in the axial position standing into the bore, ``c - h cos^2(pi (s - a) / w)`` for
     ``|s - a| < w / 2``, whose misfit is taken along each point's beam (as a defect's
-    bump, `_along_beams`): range noise along an oblique beam smears a bead over
+    bump, `along_beams`): range noise along an oblique beam smears a bead over
     centimetres and three rings' mean reads it low. `centre` (m) and `height` (m, the
     rings' estimate) start it; None where it does not converge to a bead near there, at
     least a ring wide and no higher than the points on the wall reach (`OFF_WALL`)."""
@@ -252,7 +253,7 @@ def _bead(axial, values, steps, centre: float, height: float, pipe: Pipe) -> Joi
 
     scale = 3.0 * float(np.std(values))
     found = optimize.least_squares(
-        lambda q: _along_beams(bump(q), a, b, values, steps),
+        lambda q: along_beams(bump(q), a, b, values, steps),
         np.array([0.0, -height, 0.0, np.log(0.5 * BEAD_WIDTH * pipe.radius)]),
         loss="soft_l1",
         f_scale=scale,
