@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["along_beams", "raised_cosine"]
+__all__ = ["along_beams", "at_most", "covariance", "raised_cosine"]
 
 
 def raised_cosine(q, a, b) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -38,3 +38,16 @@ def along_beams(q, a, b, values, steps, iterations: int = 4) -> np.ndarray:
         slope = s_r - q[1] * (d_a * s_a + d_b * s_b)
         t -= gap / np.where(np.abs(slope) < 0.1, np.copysign(0.1, slope), slope)
     return t
+
+
+def at_most(indices: np.ndarray, count: int) -> np.ndarray:
+    """Every k-th of `indices`, evenly, so that at most `count` remain: past that a fit's
+    cost grows and its error hardly shrinks."""
+    return indices[:: max(1, -(-indices.size // count))]
+
+
+def covariance(found) -> np.ndarray:
+    """The covariance of the parameters of a least-squares fit `found`
+    (`scipy.optimize.least_squares`): the misfits' variance times ``(J^T J)^-1``."""
+    variance = float(found.fun @ found.fun) / max(found.fun.size - found.x.size, 1)
+    return variance * np.linalg.pinv(found.jac.T @ found.jac)

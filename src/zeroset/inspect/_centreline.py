@@ -25,7 +25,7 @@ from ..topology import boundary_edges, face_area_vectors, vertex_normals
 from ..types import Mesh
 from ._frame import UP, clock_angles, transport_frames, unit
 
-__all__ = ["Pipe", "Unreliable", "check_stations", "fit_pipe", "station_fits"]
+__all__ = ["Pipe", "Unreliable", "check_stations", "fit_pipe", "section_fits", "station_fits"]
 
 #: Points sampled on the mesh for its first radius.
 CURVATURE_SAMPLES = 20_000
@@ -334,6 +334,19 @@ def station_fits(pipe: Pipe, located, *, step: float | None = None, oval: bool =
         "complete": fitted & covered.all(axis=1),
         "spread": spread,
     }
+
+
+def section_fits(pipe: Pipe, located, *, step: float | None = None) -> dict:
+    """`station_fits` of circle and ovality, with each station's circle: the section's
+    where its data go all round, else a circle fitted to the distances less the ovality of
+    the complete sections around (`_without_ovality`; beside an opening a second harmonic
+    would trade off with the centre). Adds ``circle`` (K, 3), its radius and its centre
+    towards 12 and 3 o'clock (m), and ``centred`` (K,) bool, where it is fitted."""
+    sections = station_fits(pipe, located, step=step)
+    circles = station_fits(pipe, _without_ovality(located, sections), step=step, oval=False)
+    complete = sections["complete"]
+    circle = np.where(complete[:, None], sections["coef"][:, :3], circles["coef"])
+    return {**sections, "circle": circle, "centred": complete | circles["fitted"]}
 
 
 def check_stations(pipe: Pipe, located, noise, *, excused=()) -> tuple[Unreliable, ...]:
@@ -686,10 +699,8 @@ def _data_ends(pipe: Pipe, wall: np.ndarray, located, step: float) -> tuple[floa
 
 
 def _refit(pipe: Pipe, wall: np.ndarray, up, guide: np.ndarray) -> Pipe:
-    """Move the centreline onto the centres of the sections fitted to `wall` per station:
-    circle and ovality where the data go all round, a circle only where they do not (beside
-    an opening a second harmonic would trade off with the centre), fitted to the
-    distances less the ovality of the complete sections around (`_without_ovality`).
+    """Move the centreline onto the centres of the sections fitted to `wall` per station
+    (`section_fits`).
 
     Where no station is fitted for two stations' length (the thin, one-sided data near
     the scan's ends), the centreline follows the `guide` (K, 3), the axis points it
@@ -697,18 +708,16 @@ def _refit(pipe: Pipe, wall: np.ndarray, up, guide: np.ndarray) -> Pipe:
     bend, that would leave the pipe.
     """
     located = pipe.locate(wall)
-    sections = station_fits(pipe, located)
-    circles = station_fits(pipe, _without_ovality(located, sections), oval=False)
-    coef = np.where(sections["complete"][:, None], sections["coef"][:, :3], circles["coef"])
-    good = circles["fitted"] | sections["complete"]
+    fits = section_fits(pipe, located)
+    good = fits["centred"]
     if np.count_nonzero(good) < 4:
         raise InputError("too few cross-sections of the pipe are covered by the mesh to fit it")
-    along, coef = circles["axial"][good], coef[good]
+    along, coef = fits["axial"][good], fits["circle"][good]
     centre, tangent, up_dir = pipe._at(along)
     right = np.cross(tangent, up_dir)
     moved = centre + coef[:, 1:2] * up_dir + coef[:, 2:3] * right
     guided = pipe.locate(guide)[0]
-    step = circles["axial"][1] - circles["axial"][0] if circles["axial"].size > 1 else 0.0
+    step = fits["axial"][1] - fits["axial"][0] if fits["axial"].size > 1 else 0.0
     gap = np.abs(guided[:, None] - along[None, :]).min(axis=1) if along.size else guided
     alone = np.isfinite(guided) & (gap > 2.0 * step)
     if alone.any():

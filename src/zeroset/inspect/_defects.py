@@ -7,7 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage, optimize, special
 
-from ._bump import along_beams, raised_cosine
+from ._bump import along_beams, at_most, covariance, raised_cosine
 from ._centreline import Pipe
 from ._measure import Ovality
 from ._unrolled import WallMap
@@ -418,7 +418,7 @@ class _BumpFit:
         a = self.axial[lo:hi] - axial
         b = np.radians((self.clock[lo:hi] - clock + 180.0) % 360.0 - 180.0) * self.pipe.radius
         near = np.flatnonzero(np.abs(b) <= reach_b)
-        near = near[:: max(1, -(-near.size // MAX_BUMP_POINTS))]  # evenly, at most so many
+        near = at_most(near, MAX_BUMP_POINTS)
         a, b, values = a[near], b[near], self.residual[lo:hi][near]
         start = np.array([0.0, peak * 2.0, 0.0, 0.0, np.log(reach_a), np.log(reach_b)])
         if values.size <= 2 * start.size:
@@ -446,13 +446,12 @@ class _BumpFit:
         plausible = np.sign(q[1]) == np.sign(peak) and abs(q[0] + q[1]) <= 4 * abs(peak)
         if not (found.success and centred and plausible):
             return float(axial), float(clock), float(peak), float("nan")
-        variance = float(found.fun @ found.fun) / max(values.size - q.size, 1)
-        covariance = variance * np.linalg.pinv(found.jac.T @ found.jac)
+        spread = covariance(found)
         depth = q[0] + q[1]
         if blurred:
             inside = raised_cosine(q, a, b)[0] > 0
             blur = float(np.var(found.fun[inside])) if np.count_nonzero(inside) > 1 else 0.0
             depth += q[1] * 0.25 * np.pi**2 * blur * (np.exp(-2 * q[4]) + np.exp(-2 * q[5]))
-        error = np.sqrt(max(covariance[0, 0] + covariance[1, 1] + 2 * covariance[0, 1], 0.0))
+        error = np.sqrt(max(spread[0, 0] + spread[1, 1] + 2 * spread[0, 1], 0.0))
         turn = np.degrees(q[3] / self.pipe.radius)
         return float(axial + q[2]), float((clock + turn) % 360.0), float(depth), float(error)

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage, optimize, special
 
-from ._bump import along_beams
+from ._bump import along_beams, at_most, covariance
 from ._centreline import SECTORS, Pipe, station_fits
 from ._defects import BRANCH, FIT_EVALUATIONS, MAX_BUMP_POINTS
 from ._frame import clock_angles
@@ -242,7 +242,7 @@ def _bead(axial, values, steps, centre: float, height: float, pipe: Pipe) -> Joi
     rings' estimate) start it; None where it does not converge to a bead near there, at
     least a ring wide and no higher than the points on the wall reach (`OFF_WALL`)."""
     known = np.flatnonzero(np.isfinite(steps).all(axis=1))
-    known = known[:: max(1, -(-known.size // MAX_BUMP_POINTS))]  # evenly, at most so many
+    known = at_most(known, MAX_BUMP_POINTS)
     a, values, steps = axial[known] - centre, values[known], steps[known].T
     if values.size < 20:
         return None
@@ -264,9 +264,7 @@ def _bead(axial, values, steps, centre: float, height: float, pipe: Pipe) -> Joi
     on_wall = -OFF_WALL * pipe.radius < d < 0  # standing into the bore, as the points do
     if not (found.success and on_wall and resolved and abs(shift) <= BASELINE * pipe.radius):
         return None
-    variance = float(found.fun @ found.fun) / max(values.size - 4, 1)
-    covariance = variance * np.linalg.pinv(found.jac.T @ found.jac)
-    return Joint("bead", float(centre + shift), float(-d), float(np.sqrt(covariance[1, 1])))
+    return Joint("bead", float(centre + shift), float(-d), float(np.sqrt(covariance(found)[1, 1])))
 
 
 def _gap(axial, excess, error, centre: float, blur: float, step: float) -> Joint | None:
@@ -291,10 +289,10 @@ def _gap(axial, excess, error, centre: float, blur: float, step: float) -> Joint
     inside = abs(a - centre) < 0.5 * (axial[-1] - axial[0])
     if not (found.success and w >= step and d > 0 and inside):
         return None  # no recess, or one narrower than a ring: not resolved
-    covariance = np.linalg.pinv(found.jac.T @ found.jac) * max(
+    spread = np.linalg.pinv(found.jac.T @ found.jac) * max(
         float(found.fun @ found.fun) / max(excess.size - 3, 1), 1.0
     )
-    return Joint("gap", float(a), float(w), float(np.sqrt(covariance[1, 1])), depth=float(d))
+    return Joint("gap", float(a), float(w), float(np.sqrt(spread[1, 1])), depth=float(d))
 
 
 def _all_round(sector: np.ndarray, excess: np.ndarray) -> bool:

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._centreline import Pipe, _without_ovality, station_fits
+from ._centreline import Pipe, section_fits
 
 __all__ = ["Ovality", "deviation", "ovality"]
 
@@ -97,7 +97,7 @@ def ovality(pipe: Pipe, x, *, step: float | None = None, located=None) -> Ovalit
     from the centreline over the clock angle t, robustly (a dent does not pull it; see
     `station_fits`); a station whose data leave a sector of 22.5 degrees empty (an
     opening, a shadow) measures no radius or ovality, only its centre ``(a1, b1)``, by a
-    circle fitted to the distances less the ovality around (as the centreline is). The
+    circle (`section_fits`, as the centreline is). The
     mean radius, the centre and the second harmonic are then medians over `WINDOW`
     stations, so one station disturbed (a branch's seam, a defect) does not set them.
     With ``A2 = hypot(a2, b2)`` the diameters are ``2 (a0 +- A2)``, so the ovality is ``4
@@ -105,12 +105,9 @@ def ovality(pipe: Pipe, x, *, step: float | None = None, located=None) -> Ovalit
     """
     if located is None:
         located = pipe.locate(np.asarray(x, dtype=np.float64))
-    fits = station_fits(pipe, located, step=step)
-    circles = station_fits(pipe, _without_ovality(located, fits), step=step, oval=False)
-    complete = fits["complete"]
-    own = np.where(complete[:, None], fits["coef"], np.nan)
-    centred = ~complete & circles["fitted"]
-    own[centred, 1:3] = circles["coef"][centred, 1:3]
+    fits = section_fits(pipe, located, step=step)
+    own = np.where(fits["complete"][:, None], fits["coef"], np.nan)
+    own[:, 1:3] = np.where(fits["centred"][:, None], fits["circle"][:, 1:3], np.nan)
     medians = np.stack([_running_median(c) for c in own.T], axis=1)
     a0, a1, b1, a2, b2 = medians.T
     amplitude = np.hypot(a2, b2)
