@@ -53,9 +53,11 @@ def _inspect(sample):
 
 def _centreline_error(inspection, sample) -> tuple[float, float]:
     """The largest distance (m) of the true centreline from the fitted one, where the
-    data cover it, and between the first and last station only."""
+    data cover it (between the first and last positions along the truth that scan points
+    lie nearest to), and between the first and last station only."""
     truth = np.array(sample.truth_record["centreline"])
-    covered = cKDTree(sample.points).query(truth[:, 1:])[0] < 1.5 * sample.truth_record["radius"]
+    nearest = truth[cKDTree(truth[:, 1:]).query(sample.points)[1], 0]
+    covered = (truth[:, 0] >= nearest.min()) & (truth[:, 0] <= nearest.max())
     gaps = cKDTree(inspection.pipe.centres).query(truth[:, 1:])[0]
     stations = sample.truth_record["stations"]
     between = (truth[:, 0] >= min(stations)) & (truth[:, 0] <= max(stations))

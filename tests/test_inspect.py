@@ -30,7 +30,14 @@ from zeroset.inspect import (
     write_joints_csv,
     write_ovality_csv,
 )
-from zeroset.inspect._centreline import MAX_FIT_VERTICES, _evenly, _straight_run
+from zeroset.inspect._bump import along_beams, bump, raised_cosine
+from zeroset.inspect._centreline import (
+    MAX_FIT_VERTICES,
+    _evenly,
+    _pipe_along,
+    _straight_run,
+    section_fits,
+)
 from zeroset.inspect._defects import _significance
 from zeroset.inspect._files import length_agrees
 from zeroset.inspect._pictures import (
@@ -638,6 +645,20 @@ def test_a_scanned_bead_is_fitted_along_the_beams():
     assert inspection.defects.defects == ()
 
 
+def test_a_scanned_gap_is_fitted_along_the_beams():
+    """Seen 25 cm off, a recess' far edge hides most of its floor: the rings' means read
+    this 18 mm gap as no recess at all; fitted along the beams it is found and sized."""
+    path = PipePath.build([("straight", 2.5)])
+    gap = SyntheticJoint("gap", 1.3, 0.018, depth=0.006)
+    sample = scan_pipe_run(path, stations=(0.6, 1.55), rotation_step=4.0, joints=(gap,), rng=4)
+    inspection = inspect_pipe(_reconstructed(sample), sample.points, viewpoints=sample.viewpoints)
+    (found,) = inspection.joints
+    axial = inspection.pipe.locate(np.array([sample.truth_record["joints"][0]["centre"]]))[0][0]
+    assert found.kind == "gap" and abs(found.axial - axial) < 0.02  # metres
+    assert abs(found.size - 0.018) < 0.0015
+    assert inspection.defects.defects == ()
+
+
 @pytest.fixture(scope="module")
 def bent_run():
     """A scanned run with two tight bends and a last leg of one diameter, the second bend
@@ -684,6 +705,57 @@ def test_a_large_scan_is_fitted_on_points_chosen_evenly_over_the_wall(rng):
     cells = np.floor(axial[known] / 0.02) * 16 + clock[known] // 22.5
     per_cell = np.unique(cells, return_counts=True)[1]
     assert per_cell.max() <= 2 * np.median(per_cell)  # the dense cells all hold the same
+
+
+def test_a_station_seen_on_a_quarter_of_its_circle_is_centred_on_the_radius_around(rng):
+    """A scan's thin tail shows an arc of its wall: too little for a circle of its own,
+    enough for the centre of one with the radius of the complete sections before it."""
+    radius, shift = 0.2, np.array([0.0015, -0.001, 0.0])  # the axis moves 1.8 mm at z = 0.6
+    pipe = _pipe_along(np.c_[np.zeros(51), np.zeros(51), np.linspace(0, 1, 51)], radius,
+                       radius, (0.0, 1.0, 0.0), margin=0.0)  # fmt: skip
+    z = rng.uniform(0.0, 1.0, 60_000)
+    angle = rng.uniform(0.0, 2 * np.pi, z.size)
+    seen = (z < 0.6) | (angle < np.radians(100.0))  # beyond 0.6 m, 100 degrees of wall
+    z, angle = z[seen], angle[seen]
+    wall = radius + rng.normal(0.0, 5e-4, z.size)
+    points = np.c_[wall * np.cos(angle), wall * np.sin(angle), z] + (z >= 0.6)[:, None] * shift
+    fits = section_fits(pipe, pipe.locate(points))
+    tail = fits["axial"] > 0.62
+    assert fits["arc"][tail].all() and not fits["arc"][fits["axial"] < 0.58].any()
+    centre, tangent, up = pipe._at(fits["axial"][tail])
+    right = np.cross(tangent, up)
+    moved = centre + fits["circle"][tail, 1:2] * up + fits["circle"][tail, 2:3] * right
+    assert np.abs(moved - (centre + shift)).max() < 5e-4  # metres
+
+
+def test_a_bump_is_met_along_each_beam_where_the_beam_first_reaches_it(rng):
+    """At grazing incidence a beam can cross a bulge's pocket twice: the range the scanner
+    measured is the first crossing, so the misfit of a sample moved by e along its beam
+    is -e, wherever the beam meets the bump."""
+    q = np.array([0.0, 0.012, 0.0, 0.0, np.log(0.025), np.log(0.025)])  # 12 mm, 5 cm wide
+    n = 400
+    slope = np.radians(rng.uniform(15.0, 60.0, n))  # between the beam and the wall
+    turn = rng.uniform(-0.3, 0.3, n)
+    steps = np.stack([np.cos(slope) * np.cos(turn), np.cos(slope) * np.sin(turn), np.sin(slope)])
+    start = rng.uniform(-0.06, 0.02, n)  # where each beam would meet the unbumped wall
+    # each beam marched from inside the bore in steps of 0.01 mm to its first hit
+    t = np.arange(-0.1, 0.1, 1e-5)[:, None]
+    a, b, height = start + t * steps[0], t * steps[1], t * steps[2]
+    beyond = height >= q[1] * raised_cosine(q, a, b)[0]
+    first = np.argmax(beyond, axis=0)
+    hit_a, hit_b, hit_r = (x[first, np.arange(n)] for x in (a, b, height))
+    noise = rng.normal(0.0, 0.004, n)
+    misfit = along_beams(
+        bump(q),
+        hit_a + noise * steps[0],
+        hit_b + noise * steps[1],
+        hit_r + noise * steps[2],
+        steps,
+        0.03,
+    )
+    assert np.abs(misfit + noise).max() < 5e-5  # metres
+    inside = np.abs(hit_a) < 0.025
+    assert np.count_nonzero(inside) > 50  # beams that met the pocket, far flank included
 
 
 def test_a_stretch_whose_wall_is_no_circle_is_unreliable_and_not_judged():

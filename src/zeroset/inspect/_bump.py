@@ -5,7 +5,14 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["along_beams", "at_most", "covariance", "raised_cosine"]
+__all__ = ["along_beams", "at_most", "beam_reach", "bump", "covariance", "raised_cosine"]
+
+#: `along_beams` searches for the wall over this many steps of its reach, which is this
+#: many robust deviations of the range noise (a hit beyond is an outlier), and refines
+#: each hit this many times.
+BEAM_GRID = 32
+REACH = 6.0
+REFINE = 3
 
 
 def raised_cosine(q, a, b) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -21,23 +28,56 @@ def raised_cosine(q, a, b) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return np.cos(0.5 * np.pi * root) ** 2, 2 * slope * (a - q[2]) / wa, 2 * slope * (b - q[3]) / wb
 
 
-def along_beams(q, a, b, values, steps, iterations: int = 4) -> np.ndarray:
-    """Signed distance (m) along each sample's beam from the sample to the wall
-    ``residual = q[0] + q[1] bump(a, b)``.
+def bump(q):
+    """The wall ``q[0] + q[1] raised_cosine(q, a, b)`` as a function of (a, b)."""
+    return lambda a, b: q[0] + q[1] * raised_cosine(q, a, b)[0]
+
+
+def along_beams(wall, a, b, values, steps, reach: float) -> np.ndarray:
+    """Signed distance (m) along each sample's beam from the sample to where the beam
+    first meets the wall, coming from the scanner: ``wall(a, b)`` is its residual (m) at
+    positions a along and b round the pipe (m), such as `bump`'s.
 
     A sample at (a, b) with residual `values` moves by t along its beam to (a + t s_a,
     b + t s_b) and residual ``values + t s_r``, `steps` = (s_a, s_b, s_r) being the beam's
-    components along, round and away from the pipe; t is found by Newton's method from 0.
-    Where a beam grazes the bump its slope is held at 0.1 at least.
+    components along, round and away from the pipe. t is the first crossing from inside
+    the bore to beyond the wall within `reach` metres either way, searched on a grid of
+    `BEAM_GRID` steps and refined `REFINE` times by regula falsi; where there is none it is
+    -`reach` (the beam met the wall before) or `reach` (not yet). At grazing incidence
+    a beam can meet a bump two or three times, and a bump's far flank (a recess's far
+    edge) hides its near one: the first hit is the range the scanner measured, whatever
+    the shape, so the misfit is the range noise.
     """
     s_a, s_b, s_r = steps
-    t = np.zeros_like(values)
-    for _ in range(iterations):
-        bump, d_a, d_b = raised_cosine(q, a + t * s_a, b + t * s_b)
-        gap = values + t * s_r - q[0] - q[1] * bump
-        slope = s_r - q[1] * (d_a * s_a + d_b * s_b)
-        t -= gap / np.where(np.abs(slope) < 0.1, np.copysign(0.1, slope), slope)
-    return t
+
+    def gap(t):  # < 0 inside the bore, > 0 beyond the wall
+        return values + t * s_r - wall(a + t * s_a, b + t * s_b)
+
+    grid = np.linspace(-reach, reach, BEAM_GRID + 1)[:, None]
+    gaps = gap(grid)
+    inside = gaps < 0.0
+    cross = inside[:-1] & ~inside[1:]
+    first = np.argmax(cross, axis=0)
+    column = np.arange(values.size)
+    low, high = grid[first, 0], grid[first + 1, 0]
+    g_low, g_high = gaps[first, column], gaps[first + 1, column]
+    for _ in range(REFINE):  # regula falsi within the bracket: a smooth misfit to fit
+        hit = low - g_low * (high - low) / (g_high - g_low)
+        g_hit = gap(hit)
+        below = g_hit < 0.0
+        low, g_low = np.where(below, hit, low), np.where(below, g_hit, g_low)
+        high, g_high = np.where(below, high, hit), np.where(below, g_high, g_hit)
+    hit = low - g_low * (high - low) / (g_high - g_low)
+    missed = np.where(inside[0], reach, -reach)  # all inside, or beyond from the start
+    return np.where(cross.any(axis=0) & inside[0], hit, missed)
+
+
+def beam_reach(values, steps) -> float:
+    """How far (m) `along_beams` looks for the wall: `REACH` robust deviations of the
+    residuals `values` (m) measured along the beams `steps` (their radial components
+    held at 0.1 at least)."""
+    along = np.abs(values - np.median(values)) / np.maximum(np.abs(steps[2]), 0.1)
+    return float(REACH * 1.4826 * np.median(along))
 
 
 def at_most(indices: np.ndarray, count: int) -> np.ndarray:

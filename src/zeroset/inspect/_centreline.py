@@ -41,9 +41,12 @@ ROUNDS = 8
 SETTLED = 2e-4
 #: Residuals beyond this many robust deviations get no weight in a station's fit.
 TUKEY = 4.685
-#: Sectors of angle around a station, and how many its data must cover to fit a circle.
+#: Sectors of angle around a station, and how many its data must cover to fit a circle;
+#: with the radius of the sections around known, `ARC` sectors (90 degrees) place its
+#: centre (see `section_fits`).
 SECTORS = 16
 COVERED = 12
+ARC = 4
 #: The data's ends are where stretches hold fewer than this share of a typical
 #: stretch's points.
 THIN = 0.02
@@ -267,7 +270,9 @@ def fit_pipe(
     return replace(pipe, centres=pipe.centres + shift, radius=radius, extent=extent)
 
 
-def station_fits(pipe: Pipe, located, *, step: float | None = None, oval: bool = True) -> dict:
+def station_fits(
+    pipe: Pipe, located, *, step: float | None = None, oval: bool = True, radius=None
+) -> dict:
     """Robust circle-plus-ovality fits of points in stations along `pipe`.
 
     `located` is ``pipe.locate(x)`` of the points x: their axial position, clock angle
@@ -277,14 +282,17 @@ def station_fits(pipe: Pipe, located, *, step: float | None = None, oval: bool =
     the centreline as ``a0 + a1 cos t + b1 sin t + a2 cos 2t + b2 sin 2t`` of the clock
     angle t, by iteratively reweighted least squares (Tukey's biweight), so dents and
     branches do not pull it; with ``oval=False`` only the circle (the first three terms).
+    With `radius`, a function of the axial position (m) giving the radius (m), only the
+    centre (``a1``, ``b1``) is fitted, to the distances less that radius, and ``a0`` is
+    the radius at the station's centre.
     Returns arrays per station: ``axial`` (K,) centres, ``coef`` (K, 5) or (K, 3),
     ``count`` (K,), ``fitted`` (K,) bool, ``complete`` (K,) bool and ``spread`` (K,),
     the median over the sectors of angle of the robust spread of the fit's inliers in each
     (a dent in a few sectors leaves it, a section that fits nowhere does not).
 
-    A station is not fitted where its points cover fewer than `COVERED` of `SECTORS`
-    sectors of angle (counting points within a tenth of the median distance from the
-    centreline), are fewer than `MIN_STATION_POINTS`, or where the circle's
+    A station is not fitted where its points cover fewer than `COVERED` (with `radius`,
+    `ARC`) of `SECTORS` sectors of angle (counting points within a tenth of the median
+    distance from the centreline), are fewer than `MIN_STATION_POINTS`, or where the circle's
     centre is more than half the median fitted radius off the centreline or its radius a
     quarter off that median. It is complete when fitted with every sector covered.
     """
@@ -303,17 +311,21 @@ def station_fits(pipe: Pipe, located, *, step: float | None = None, oval: bool =
         np.sin(2 * angle),
     ]
     basis = np.stack(terms if oval else terms[:3], axis=1)
+    values = distance
+    if radius is not None:
+        basis, values = basis[:, 1:3], distance - radius(along)
     sector = np.minimum((angle / (2 * np.pi / SECTORS)).astype(np.int64), SECTORS - 1)
     covered = np.zeros((n_stations, SECTORS), dtype=bool)
     typical = np.median(distance)
     near = np.abs(distance - typical) < 0.1 * typical  # a branch covers nothing
     covered[station[near], sector[near]] = True
     count = np.bincount(station, minlength=n_stations)
-    fitted = (covered.sum(axis=1) >= COVERED) & (count >= MIN_STATION_POINTS)
+    least = COVERED if radius is None else ARC
+    fitted = (covered.sum(axis=1) >= least) & (count >= MIN_STATION_POINTS)
     weight = np.where(np.abs(distance - typical) < 0.3 * typical, 1.0, 0.0)
     for _ in range(6):
-        coef = _weighted_fits(basis, distance, weight, station, n_stations, fitted)
-        residual = distance - np.einsum("ij,ij->i", basis, coef[station])
+        coef = _weighted_fits(basis, values, weight, station, n_stations, fitted)
+        residual = values - np.einsum("ij,ij->i", basis, coef[station])
         scale = _station_mad(np.abs(residual), station, weight > 0, n_stations)
         u = residual / (TUKEY * np.maximum(scale[station], 1e-9))
         weight = np.where(np.abs(u) < 1.0, (1.0 - u**2) ** 2, 0.0)
@@ -323,11 +335,14 @@ def station_fits(pipe: Pipe, located, *, step: float | None = None, oval: bool =
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # a station without points
         spread = np.nanmedian(np.where(np.isfinite(by_sector), by_sector, np.nan), axis=1)
+    centres = start + (np.arange(n_stations) + 0.5) * step
+    if radius is not None:
+        coef = np.column_stack([radius(centres), coef])
     offset = np.hypot(coef[:, 1], coef[:, 2])
     typical = np.median(coef[fitted, 0]) if fitted.any() else typical
     fitted &= (offset < 0.5 * typical) & (np.abs(coef[:, 0] - typical) < 0.25 * typical)
     return {
-        "axial": start + (np.arange(n_stations) + 0.5) * step,
+        "axial": centres,
         "coef": coef,
         "count": count,
         "fitted": fitted,
@@ -338,15 +353,33 @@ def station_fits(pipe: Pipe, located, *, step: float | None = None, oval: bool =
 
 def section_fits(pipe: Pipe, located, *, step: float | None = None) -> dict:
     """`station_fits` of circle and ovality, with each station's circle: the section's
-    where its data go all round, else a circle fitted to the distances less the ovality of
+    where its data go all round; else a circle fitted to the distances less the ovality of
     the complete sections around (`_without_ovality`; beside an opening a second harmonic
-    would trade off with the centre). Adds ``circle`` (K, 3), its radius and its centre
-    towards 12 and 3 o'clock (m), and ``centred`` (K,) bool, where it is fitted."""
+    would trade off with the centre) where they cover `COVERED` sectors; else, where they
+    cover an arc of `ARC` sectors (the thin tail a scanner sees far ahead, one side of a
+    shadow), the centre of a circle with the radius of the sections around, interpolated
+    along the pipe. Adds ``circle`` (K, 3), its radius and its centre towards 12 and 3
+    o'clock (m), ``centred`` (K,) bool, where it is fitted, and ``arc`` (K,) bool, where
+    its radius came from the sections around.
+
+    With the radius known, an arc of half-angle p places the centre along its bisector to
+    within the radius' own error times sin(p) / p / (1/2 + sin(2p) / 4p): 1.1 at 90
+    degrees, 1.3 at 180; across the bisector, the noise's effect grows as 1 / (1/2 -
+    sin(2p) / 4p) ** 0.5, 1.7 times a full circle's at 90 degrees.
+    """
     sections = station_fits(pipe, located, step=step)
-    circles = station_fits(pipe, _without_ovality(located, sections), step=step, oval=False)
+    flat = _without_ovality(located, sections)
+    circles = station_fits(pipe, flat, step=step, oval=False)
     complete = sections["complete"]
     circle = np.where(complete[:, None], sections["coef"][:, :3], circles["coef"])
-    return {**sections, "circle": circle, "centred": complete | circles["fitted"]}
+    centred = complete | circles["fitted"]
+    arc = np.zeros_like(centred)
+    if centred.any() and not centred.all():
+        known = sections["axial"][centred], circle[centred, 0]
+        arcs = station_fits(pipe, flat, step=step, radius=lambda x: np.interp(x, *known))
+        arc = arcs["fitted"] & ~centred
+        circle[arc] = arcs["coef"][arc]
+    return {**sections, "circle": circle, "centred": centred | arc, "arc": arc}
 
 
 def check_stations(pipe: Pipe, located, noise, *, excused=()) -> tuple[Unreliable, ...]:
@@ -359,7 +392,8 @@ def check_stations(pipe: Pipe, located, noise, *, excused=()) -> tuple[Unreliabl
     takes a few; the wall there is no circle or ellipse round this centreline: a
     junction, a collapse, a centreline that cut a corner), and where no section could be
     fitted for more than `GUIDED` radii running (the data do not go round the pipe: the
-    centreline there follows the axis points or runs straight on, unchecked). Stations
+    centreline there is placed by arcs of an assumed radius, follows the axis points or
+    runs straight on, and no residual there can tell a dent from a section). Stations
     within the axial stretches `excused` ((start, end) pairs, metres: ring features,
     whose wall is meant to leave the section) are not judged. Consecutive stations
     with the same reason make one stretch.
@@ -702,8 +736,8 @@ def _refit(pipe: Pipe, wall: np.ndarray, up, guide: np.ndarray) -> Pipe:
     """Move the centreline onto the centres of the sections fitted to `wall` per station
     (`section_fits`).
 
-    Where no station is fitted for two stations' length (the thin, one-sided data near
-    the scan's ends), the centreline follows the `guide` (K, 3), the axis points it
+    Where no station is fitted for two stations' length (data on less than a quarter of
+    the circle), the centreline follows the `guide` (K, 3), the axis points it
     started from, rather than running straight on from the last fitted station: after a
     bend, that would leave the pipe.
     """

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage, optimize, special
 
-from ._bump import along_beams, at_most, covariance, raised_cosine
+from ._bump import along_beams, at_most, beam_reach, bump, covariance, raised_cosine
 from ._centreline import Pipe
 from ._measure import Ovality
 from ._unrolled import WallMap
@@ -404,9 +404,11 @@ class _BumpFit:
         fitted to the radial residuals. A scanner's range noise lies along its beams, and
         along an oblique beam it also shifts a point along the wall: that blurs the bump,
         and, as a bump bunches the beams on its near flank, biases the residuals at each
-        place (errors in the variables). With the beams known, the bump is therefore
-        fitted again where the noise is, along the beams: each sample's misfit is the
-        distance along its beam to the bump (`along_beams`), which is unbiased. Without
+        place (errors in the variables); at grazing incidence a bulge's far flank also
+        hides its near one, so the samples over it are those measured short. With the
+        beams known, the bump is therefore fitted again where the noise is, along the
+        beams: each sample's misfit is the distance along its beam to where the beam first
+        meets the bump (`along_beams`), which is the range noise. Without
         them the depth is corrected for the blur to second order, ``d pi^2 / 4 (s_a^2 /
         wa^2 + s_b^2 / wb^2)``, taking the noise as isotropic: s_a^2 and s_b^2, the
         variances of the shifts along and round the wall, are both the variance of the
@@ -434,11 +436,12 @@ class _BumpFit:
         blurred = self.steps is None
         if found.success and not blurred:
             steps = self.steps[lo:hi][near].T
+            reach = beam_reach(found.fun, steps)
             found = optimize.least_squares(
-                lambda q: along_beams(q, a, b, values, steps),
+                lambda q: along_beams(bump(q), a, b, values, steps, reach),
                 found.x,
                 loss="soft_l1",
-                f_scale=scale,
+                f_scale=0.5 * reach,
                 max_nfev=FIT_EVALUATIONS,
             )
         q = found.x

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage, optimize, special
 
-from ._bump import along_beams, at_most, covariance
+from ._bump import along_beams, at_most, beam_reach, bump, covariance
 from ._centreline import SECTORS, Pipe, station_fits
 from ._defects import BRANCH, FIT_EVALUATIONS, MAX_BUMP_POINTS
 from ._frame import clock_angles
@@ -213,6 +213,14 @@ def _rings(pipe: Pipe, axial, clock, residual, blur, steps, wall: WallMap, whole
             spread = float(np.median(blur[np.abs(index - peak) <= half]))
             middle = start + step * (np.arange(n_rings)[window] + 0.5)
             gap = _gap(middle, excess[window], error[window], centre, spread, step)
+            if steps is not None:  # fitted along the beams: the far edge hides the floor
+                near = np.flatnonzero(np.abs(index - peak) <= half)
+                values = residual[near] - baseline[index[near]]
+                peak_excess = float(excess[peak])  # as wide as the rings' excess' area
+                area = float(np.clip(np.nan_to_num(excess[window]), 0.0, None).sum() * step)
+                guess = (centre, peak_excess, area / peak_excess) if gap is None else gap
+                fitted = _recess(axial[near], values, steps[near], guess, step)
+                gap = gap if fitted is None else fitted
             if gap is not None:
                 yield gap
             continue
@@ -248,15 +256,15 @@ def _bead(axial, values, steps, centre: float, height: float, pipe: Pipe) -> Joi
         return None
     b, around = np.zeros_like(a), np.log(1e3)  # all round: no change with the clock
 
-    def bump(q):  # (c, d, a0, log half-width) as a defect's bump, constant round the pipe
-        return np.array([q[0], q[1], q[2], 0.0, q[3], around])
+    def ring(q):  # (c, d, a0, log half-width) as a defect's bump, constant round the pipe
+        return bump(np.array([q[0], q[1], q[2], 0.0, q[3], around]))
 
-    scale = 3.0 * float(np.std(values))
+    reach = beam_reach(values, steps)
     found = optimize.least_squares(
-        lambda q: along_beams(bump(q), a, b, values, steps),
+        lambda q: along_beams(ring(q), a, b, values, steps, reach),
         np.array([0.0, -height, 0.0, np.log(0.5 * BEAD_WIDTH * pipe.radius)]),
         loss="soft_l1",
-        f_scale=scale,
+        f_scale=0.5 * reach,
         max_nfev=FIT_EVALUATIONS,
     )
     _, d, shift, half_width = found.x
@@ -293,6 +301,50 @@ def _gap(axial, excess, error, centre: float, blur: float, step: float) -> Joint
         float(found.fun @ found.fun) / max(excess.size - 3, 1), 1.0
     )
     return Joint("gap", float(a), float(w), float(np.sqrt(spread[1, 1])), depth=float(d))
+
+
+def _recess(axial, values, steps, guess, step: float) -> Joint | None:
+    """A gap fitted to the points at `axial` (m) with their residuals `values` (m, less
+    the rings' running median) along their beams `steps` (`beam_steps`, as a bead's, see
+    `_bead`): a recess ``c + d (Phi((s - a + w/2) / e) - Phi((s - a - w/2) / e))``, its
+    edges as sharp as a ring resolves (e, a ring's `step` over sqrt(12)). Seen from
+    afar, a recess' far edge hides its floor, and the rings' means read it wide and
+    shallow. `guess` is the rings' gap (a Joint) or (centre, depth, width); None where
+    it does not converge to a recess a ring wide or more near there."""
+    known = np.flatnonzero(np.isfinite(steps).all(axis=1))
+    known = at_most(known, MAX_BUMP_POINTS)
+    a, values, steps = axial[known], values[known], steps[known].T
+    if values.size < 20:
+        return None
+    centre, depth, width = (
+        (guess.axial, guess.depth, guess.size) if isinstance(guess, Joint) else guess
+    )
+    edge = step / np.sqrt(12.0)
+
+    def wall(q):  # (c, d, a, log w), the same all round
+        half = 0.5 * np.exp(q[3])
+        return lambda s, _: (
+            q[0]
+            + q[1]
+            * (special.ndtr((s - q[2] + half) / edge) - special.ndtr((s - q[2] - half) / edge))
+        )
+
+    reach = beam_reach(values, steps)
+    b = np.zeros_like(a)
+    found = optimize.least_squares(
+        lambda q: along_beams(wall(q), a, b, values, steps, reach),
+        np.array([0.0, depth, centre, np.log(max(width, step))]),
+        loss="soft_l1",
+        f_scale=0.5 * reach,
+        max_nfev=FIT_EVALUATIONS,
+    )
+    _, d, middle, log_width = found.x
+    w = float(np.exp(log_width))
+    near = abs(middle - centre) <= 0.5 * (a.max() - a.min())
+    if not (found.success and d > 0 and w >= step and near):
+        return None
+    spread = covariance(found)
+    return Joint("gap", float(middle), w, float(w * np.sqrt(spread[3, 3])), depth=float(d))
 
 
 def _all_round(sector: np.ndarray, excess: np.ndarray) -> bool:
