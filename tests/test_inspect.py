@@ -631,31 +631,26 @@ def test_joints_and_ovality_are_no_defects_and_leave_the_threshold(jointed_run):
     assert np.median(jointed.ovality.ovality[stations]) == pytest.approx(0.03, abs=0.003)
 
 
-def test_a_scanned_bead_is_fitted_along_the_beams():
-    """Range noise along oblique beams smears a bead over centimetres: three rings' mean
-    reads this 3 mm bead below the threshold; fitted along the beams it is found."""
+@pytest.mark.parametrize(
+    "joint, stations, seed",
+    [
+        # Range noise along oblique beams smears a bead over centimetres: three rings'
+        # mean reads this 3 mm bead below the threshold.
+        (SyntheticJoint("bead", 1.25, 0.003), (0.6, 1.9), 3),
+        # Seen 25 cm off, a recess' far edge hides most of its floor: the rings' means
+        # read this 18 mm gap as no recess at all.
+        (SyntheticJoint("gap", 1.3, 0.018, depth=0.006), (0.6, 1.55), 4),
+    ],
+    ids=["bead", "gap"],
+)
+def test_a_scanned_ring_feature_is_fitted_along_the_beams(joint, stations, seed):
     path = PipePath.build([("straight", 2.5)])
-    bead = SyntheticJoint("bead", 1.25, 0.003)
-    sample = scan_pipe_run(path, stations=(0.6, 1.9), rotation_step=4.0, joints=(bead,), rng=3)
+    sample = scan_pipe_run(path, stations=stations, rotation_step=4.0, joints=(joint,), rng=seed)
     inspection = inspect_pipe(_reconstructed(sample), sample.points, viewpoints=sample.viewpoints)
     (found,) = inspection.joints
     axial = inspection.pipe.locate(np.array([sample.truth_record["joints"][0]["centre"]]))[0][0]
-    assert found.kind == "bead" and abs(found.axial - axial) < 0.02  # metres
-    assert abs(found.size - 0.003) < 0.0015
-    assert inspection.defects.defects == ()
-
-
-def test_a_scanned_gap_is_fitted_along_the_beams():
-    """Seen 25 cm off, a recess' far edge hides most of its floor: the rings' means read
-    this 18 mm gap as no recess at all; fitted along the beams it is found and sized."""
-    path = PipePath.build([("straight", 2.5)])
-    gap = SyntheticJoint("gap", 1.3, 0.018, depth=0.006)
-    sample = scan_pipe_run(path, stations=(0.6, 1.55), rotation_step=4.0, joints=(gap,), rng=4)
-    inspection = inspect_pipe(_reconstructed(sample), sample.points, viewpoints=sample.viewpoints)
-    (found,) = inspection.joints
-    axial = inspection.pipe.locate(np.array([sample.truth_record["joints"][0]["centre"]]))[0][0]
-    assert found.kind == "gap" and abs(found.axial - axial) < 0.02  # metres
-    assert abs(found.size - 0.018) < 0.0015
+    assert found.kind == joint.kind and abs(found.axial - axial) < 0.02  # metres
+    assert abs(found.size - joint.size) < 0.0015
     assert inspection.defects.defects == ()
 
 

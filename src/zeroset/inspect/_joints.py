@@ -219,7 +219,7 @@ def _rings(pipe: Pipe, axial, clock, residual, blur, steps, wall: WallMap, whole
                 peak_excess = float(excess[peak])  # as wide as the rings' excess' area
                 area = float(np.clip(np.nan_to_num(excess[window]), 0.0, None).sum() * step)
                 guess = (centre, peak_excess, area / peak_excess) if gap is None else gap
-                fitted = _recess(axial[near], values, steps[near], guess, step)
+                fitted = _recess(axial[near], values, steps[near], guess, step, pipe)
                 gap = gap if fitted is None else fitted
             if gap is not None:
                 yield gap
@@ -303,14 +303,15 @@ def _gap(axial, excess, error, centre: float, blur: float, step: float) -> Joint
     return Joint("gap", float(a), float(w), float(np.sqrt(spread[1, 1])), depth=float(d))
 
 
-def _recess(axial, values, steps, guess, step: float) -> Joint | None:
+def _recess(axial, values, steps, guess, step: float, pipe: Pipe) -> Joint | None:
     """A gap fitted to the points at `axial` (m) with their residuals `values` (m, less
     the rings' running median) along their beams `steps` (`beam_steps`, as a bead's, see
     `_bead`): a recess ``c + d (Phi((s - a + w/2) / e) - Phi((s - a - w/2) / e))``, its
     edges as sharp as a ring resolves (e, a ring's `step` over sqrt(12)). Seen from
     afar, a recess' far edge hides its floor, and the rings' means read it wide and
     shallow. `guess` is the rings' gap (a Joint) or (centre, depth, width); None where
-    it does not converge to a recess a ring wide or more near there."""
+    it does not converge to a recess near there, a ring wide or more, narrower than the
+    points' stretch and no deeper than off-wall points reach (`OFF_WALL`)."""
     known = np.flatnonzero(np.isfinite(steps).all(axis=1))
     known = at_most(known, MAX_BUMP_POINTS)
     a, values, steps = axial[known], values[known], steps[known].T
@@ -339,9 +340,9 @@ def _recess(axial, values, steps, guess, step: float) -> Joint | None:
         max_nfev=FIT_EVALUATIONS,
     )
     _, d, middle, log_width = found.x
-    w = float(np.exp(log_width))
-    near = abs(middle - centre) <= 0.5 * (a.max() - a.min())
-    if not (found.success and d > 0 and w >= step and near):
+    w, span = float(np.exp(log_width)), float(a.max() - a.min())
+    inside = abs(middle - centre) <= 0.5 * span and step <= w < span
+    if not (found.success and inside and 0 < d < OFF_WALL * pipe.radius):
         return None
     spread = covariance(found)
     return Joint("gap", float(middle), w, float(w * np.sqrt(spread[3, 3])), depth=float(d))
