@@ -736,7 +736,7 @@ def test_a_bump_is_met_along_each_beam_where_the_beam_first_reaches_it(rng):
     # each beam marched from inside the bore in steps of 0.01 mm to its first hit
     t = np.arange(-0.1, 0.1, 1e-5)[:, None]
     a, b, height = start + t * steps[0], t * steps[1], t * steps[2]
-    beyond = height >= q[1] * raised_cosine(q, a, b)[0]
+    beyond = height >= q[1] * raised_cosine(q, a, b)
     first = np.argmax(beyond, axis=0)
     hit_a, hit_b, hit_r = (x[first, np.arange(n)] for x in (a, b, height))
     noise = rng.normal(0.0, 0.004, n)

@@ -427,7 +427,7 @@ class _BumpFit:
             return float(axial), float(clock), float(peak), float("nan")
 
         def misfit(q):
-            return values - q[0] - q[1] * raised_cosine(q, a, b)[0]
+            return values - bump(q)(a, b)
 
         scale = 3 * np.std(values)
         found = optimize.least_squares(
@@ -452,7 +452,7 @@ class _BumpFit:
         spread = covariance(found)
         depth = q[0] + q[1]
         if blurred:
-            inside = raised_cosine(q, a, b)[0] > 0
+            inside = raised_cosine(q, a, b) > 0
             blur = float(np.var(found.fun[inside])) if np.count_nonzero(inside) > 1 else 0.0
             depth += q[1] * 0.25 * np.pi**2 * blur * (np.exp(-2 * q[4]) + np.exp(-2 * q[5]))
         error = np.sqrt(max(spread[0, 0] + spread[1, 1] + 2 * spread[0, 1], 0.0))
