@@ -89,6 +89,18 @@ def _defect_rows(inspection, truth: list[dict]) -> list[dict]:
     return rows
 
 
+def _spacing(stations, axial: float) -> float:
+    """The distance (m) between the stations on either side of arc length `axial`; beyond
+    the first or last, twice the distance to it."""
+    stations = np.sort(stations)
+    after = int(np.searchsorted(stations, axial))
+    if after == 0:
+        return float(2 * (stations[0] - axial))
+    if after == stations.size:
+        return float(2 * (axial - stations[-1]))
+    return float(stations[after] - stations[after - 1])
+
+
 def _joint_rows(inspection, truth: list[dict]) -> list[dict]:
     """Per true joint: the nearest found one within `JOINT_MATCH` and its errors."""
     rows = []
@@ -127,7 +139,8 @@ def _runs(count: int, rotation_step: float) -> tuple[list[str], list[dict]]:
         clean = _inspect(clean_sample)[0]
         error, between = _centreline_error(inspection, sample)
         rows = _defect_rows(inspection, sample.truth_record["defects"])
-        spacing = float(np.max(np.diff(spec.stations))) if len(spec.stations) > 1 else 0.0
+        for row in rows:
+            row["spacing"] = _spacing(spec.stations, row["truth"]["axial"])
         bends = sum(piece[0] == "bend" for piece in sample.truth_record["path"]["pieces"])
         false_branches = len(clean.defects.branches) - len(spec.tees)
         matched = {id(r["found"]) for r in rows if r["found"] is not None}
@@ -138,7 +151,6 @@ def _runs(count: int, rotation_step: float) -> tuple[list[str], list[dict]]:
                 "rows": rows,
                 "error": error,
                 "between": between,
-                "spacing": spacing,
                 "false": len(clean.defects.defects),
                 "extra": extra,
                 "false_joints": len(clean.joints) + len(inspection.joints),  # runs without
@@ -169,10 +181,7 @@ def _summary(results: list[dict]) -> list[str]:
     """The targets of the runs, met or not, in a few lines."""
     rows = [r for result in results for r in result["rows"]]
     found = [r for r in rows if r["found"] is not None]
-    close = [
-        r for result in results if result["spacing"] <= 1.0 for r in result["rows"]
-        if r["found"] is not None
-    ]  # fmt: skip
+    close = [r for r in found if r["spacing"] <= 1.0]
     inside = [r for r in found if abs(r["depth"]) <= 1.96 * r["found"].uncertainty]
     narrow = [r for r in found if 1.96 * r["found"].uncertainty <= 0.003]
     worst = max(result["error"] for result in results)
@@ -184,8 +193,8 @@ def _summary(results: list[dict]) -> list[str]:
         f"{1000 * max(r['between'] for r in results):.1f} mm.",
         f"- **Defects**: {len(found)}/{len(rows)} found within {100 * AXIAL_MATCH:.0f} cm and "
         f"{CLOCK_MATCH:.0f} degrees; depth within 1.5 mm for "
-        f"{sum(abs(r['depth']) <= 0.0015 for r in close)}/{len(close)} of those found in runs "
-        f"scanned at most 1 m apart; inside the reported 95 % interval "
+        f"{sum(abs(r['depth']) <= 0.0015 for r in close)}/{len(close)} of those found between "
+        f"stations at most 1 m apart; inside the reported 95 % interval "
         f"{len(inside)}/{len(found)}; interval no wider than ±3 mm {len(narrow)}/{len(found)}.",
         f"- **Undamaged runs**: {sum(r['false'] for r in results)} false defects, "
         f"{sum(r['false_branches'] for r in results)} false branches, "

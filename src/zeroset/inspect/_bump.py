@@ -4,8 +4,17 @@ beams: the shape a defect's depth and a bead's height are fitted with."""
 from __future__ import annotations
 
 import numpy as np
+from scipy import optimize
 
-__all__ = ["along_beams", "at_most", "beam_reach", "bump", "covariance", "raised_cosine"]
+__all__ = [
+    "along_beams",
+    "at_most",
+    "bump",
+    "covariance",
+    "fit_along_beams",
+    "raised_cosine",
+    "range_deviation",
+]
 
 #: `along_beams` searches for the wall over this many steps of its reach, which is this
 #: many robust deviations of the range noise (a hit beyond is an outlier), and refines
@@ -13,6 +22,16 @@ __all__ = ["along_beams", "at_most", "beam_reach", "bump", "covariance", "raised
 BEAM_GRID = 32
 REACH = 6.0
 REFINE = 3
+#: A fit along the beams weighs its misfits with the Cauchy loss of this many robust
+#: deviations, 95 % as efficient as least squares under Gaussian noise (Holland and
+#: Welsch 1977).
+CAUCHY = 2.385
+#: A beam's slope into the wall (the sine of the angle it meets it at) is held at this
+#: much at least: nearer grazing, a hit moves by more than the range noise measures.
+GRAZING = 0.1
+#: A bump's fit stops after this many evaluations of its misfit (a bump converges in a few
+#: tens; noise shaped like none may wander for hundreds, and is left unfitted).
+FIT_EVALUATIONS = 100
 
 
 def raised_cosine(q, a, b) -> np.ndarray:
@@ -67,12 +86,78 @@ def along_beams(wall, a, b, values, steps, reach: float) -> np.ndarray:
     return np.where(cross.any(axis=0) & inside[0], hit, missed)
 
 
-def beam_reach(values, steps) -> float:
-    """How far (m) `along_beams` looks for the wall: `REACH` robust deviations of the
-    residuals `values` (m) measured along the beams `steps` (their radial components
-    held at 0.1 at least)."""
-    along = np.abs(values - np.median(values)) / np.maximum(np.abs(steps[2]), 0.1)
-    return float(REACH * 1.4826 * np.median(along))
+def range_deviation(values, steps) -> float:
+    """A robust standard deviation (m) of the misfits `values` (m, radial) measured along
+    the beams `steps` (their radial components held at `GRAZING` at least): the range
+    noise where `values` are misfits about the wall."""
+    along = np.abs(values - np.median(values)) / np.maximum(np.abs(steps[2]), GRAZING)
+    return float(1.4826 * np.median(along))
+
+
+def fit_along_beams(model, start, a, b, values, steps):
+    """The robust fit (`scipy.optimize.least_squares`) of the wall ``model(q)`` (a function
+    of (a, b), as `bump`'s) to samples at (a, b) with residuals `values` (m), each misfit
+    taken along the sample's beam (`along_beams`, `steps` its components); `start` is q's
+    first guess. The search reaches `REACH` robust deviations of the range noise
+    (`range_deviation` about the wall ``model(start)``), and the misfits are weighed with
+    the Cauchy loss of `CAUCHY` of them.
+
+    A beam that grazes a rim meets it or passes it as the wall moves a little, and its
+    first hit jumps to the far flank: its misfit is a step. Under least squares (or a soft
+    L1 loss, which still grows without bound) those few steps make the cost a staircase
+    whose treads hold the fit far from its minimum; a scanned bulge, whose near rim
+    every beam from afar grazes, read 10 % shallow, spread twice as far as its error
+    said. The Cauchy loss bounds each step's weight, and where the trust-region fit
+    stops on a tread's edge, the Nelder-Mead simplex, which takes no derivatives, goes
+    on down the stairs. The result is the trust-region fit's, with the simplex's
+    parameters where they cost less, their misfits and their Jacobian (unweighted).
+
+    Each misfit's derivatives are those of the hit it measures, by the implicit function
+    theorem: ``dt/dq = (d wall / dq) / g'``, the wall's change with q at the hit over g',
+    the rate the beam goes into the wall there (held at `GRAZING` at least). Finite
+    differences of the misfits would take the steps for slopes a billion times steeper
+    than any."""
+    start = np.asarray(start, dtype=float)
+    deviation = range_deviation(values - model(start)(a, b), steps)
+    reach = REACH * deviation
+    s_a, s_b, s_r = steps
+    small = np.sqrt(np.finfo(float).eps)
+
+    def misfit(q):
+        return along_beams(model(q), a, b, values, steps, reach)
+
+    def jacobian(q):
+        wall = model(q)
+        t = along_beams(wall, a, b, values, steps, reach)
+        at_a, at_b, h = a + t * s_a, b + t * s_b, small * reach
+        rise = (wall(at_a + h * s_a, at_b + h * s_b) - wall(at_a - h * s_a, at_b - h * s_b)) / (
+            2 * h
+        )
+        slope = np.maximum(s_r - rise, GRAZING)
+        here = wall(at_a, at_b)
+        columns = []
+        for k in range(q.size):
+            dq = small * max(1.0, abs(q[k]))
+            moved = q.copy()
+            moved[k] += dq
+            columns.append((model(moved)(at_a, at_b) - here) / dq)
+        hit = np.abs(t) < reach
+        return np.where(hit[:, None], np.stack(columns, axis=1) / slope[:, None], 0.0)
+
+    scale = CAUCHY * deviation
+    found = optimize.least_squares(
+        misfit, start, jac=jacobian, loss="cauchy", f_scale=scale, max_nfev=FIT_EVALUATIONS
+    )
+
+    def cost(q):
+        return float(np.sum(np.log1p((misfit(q) / scale) ** 2)))
+
+    polished = optimize.minimize(
+        cost, found.x, method="Nelder-Mead", options={"maxfev": FIT_EVALUATIONS * start.size}
+    )
+    if polished.fun < cost(found.x):
+        found.x, found.fun, found.jac = polished.x, misfit(polished.x), jacobian(polished.x)
+    return found
 
 
 def at_most(indices: np.ndarray, count: int) -> np.ndarray:

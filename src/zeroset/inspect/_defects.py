@@ -7,7 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage, optimize, special
 
-from ._bump import along_beams, at_most, beam_reach, bump, covariance, raised_cosine
+from ._bump import FIT_EVALUATIONS, at_most, bump, covariance, fit_along_beams, raised_cosine
 from ._centreline import Pipe
 from ._measure import Ovality
 from ._unrolled import WallMap
@@ -35,9 +35,6 @@ EDGE_KERNELS = 2.0
 #: A bump is fitted to at most this many of the points around it (every k-th, in axial
 #: order): past it the fit's cost grows and its error hardly shrinks.
 MAX_BUMP_POINTS = 20_000
-#: A bump's fit stops after this many evaluations of its misfit (a bump converges in a few
-#: tens; noise shaped like none may wander for hundreds, and is left unfitted).
-FIT_EVALUATIONS = 100
 
 
 @dataclass(frozen=True)
@@ -435,15 +432,7 @@ class _BumpFit:
         )
         blurred = self.steps is None
         if found.success and not blurred:
-            steps = self.steps[lo:hi][near].T
-            reach = beam_reach(found.fun, steps)
-            found = optimize.least_squares(
-                lambda q: along_beams(bump(q), a, b, values, steps, reach),
-                found.x,
-                loss="soft_l1",
-                f_scale=0.5 * reach,
-                max_nfev=FIT_EVALUATIONS,
-            )
+            found = fit_along_beams(bump, found.x, a, b, values, self.steps[lo:hi][near].T)
         q = found.x
         centred = abs(q[2]) <= reach_a and abs(q[3]) <= reach_b
         plausible = np.sign(q[1]) == np.sign(peak) and abs(q[0] + q[1]) <= 4 * abs(peak)

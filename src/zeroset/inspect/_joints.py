@@ -8,9 +8,9 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage, optimize, special
 
-from ._bump import along_beams, at_most, beam_reach, bump, covariance
+from ._bump import FIT_EVALUATIONS, REACH, along_beams, at_most, bump, covariance, range_deviation
 from ._centreline import SECTORS, Pipe, station_fits
-from ._defects import BRANCH, FIT_EVALUATIONS, MAX_BUMP_POINTS
+from ._defects import BRANCH, MAX_BUMP_POINTS
 from ._frame import clock_angles
 from ._measure import Ovality
 from ._unrolled import OFF_WALL, WallMap
@@ -259,7 +259,7 @@ def _bead(axial, values, steps, centre: float, height: float, pipe: Pipe) -> Joi
     def ring(q):  # (c, d, a0, log half-width) as a defect's bump, constant round the pipe
         return bump(np.array([q[0], q[1], q[2], 0.0, q[3], around]))
 
-    reach = beam_reach(values, steps)
+    reach = REACH * range_deviation(values, steps)
     found = optimize.least_squares(
         lambda q: along_beams(ring(q), a, b, values, steps, reach),
         np.array([0.0, -height, 0.0, np.log(0.5 * BEAD_WIDTH * pipe.radius)]),
@@ -330,7 +330,7 @@ def _recess(axial, values, steps, guess, step: float, pipe: Pipe) -> Joint | Non
             * (special.ndtr((s - q[2] + half) / edge) - special.ndtr((s - q[2] - half) / edge))
         )
 
-    reach = beam_reach(values, steps)
+    reach = REACH * range_deviation(values, steps)
     b = np.zeros_like(a)
     found = optimize.least_squares(
         lambda q: along_beams(wall(q), a, b, values, steps, reach),
