@@ -1,5 +1,6 @@
-"""A raised-cosine bump on the unrolled wall, and the distance to it along a scanner's
-beams: the shape a defect's depth and a bead's height are fitted with."""
+"""A raised-cosine bump on the unrolled wall, the distance to a wall along a scanner's
+beams, and the fit of a wall to samples along their beams: the shape and the fit a
+defect's depth is measured with (a bead's height with the shape)."""
 
 from __future__ import annotations
 
@@ -105,17 +106,17 @@ def fit_along_beams(model, start, a, b, values, steps):
     A beam that grazes a rim meets it or passes it as the wall moves a little, and its
     first hit jumps to the far flank: its misfit is a step. Under least squares (or a soft
     L1 loss, which still grows without bound) those few steps make the cost a staircase
-    whose treads hold the fit far from its minimum; a scanned bulge, whose near rim
-    every beam from afar grazes, read 10 % shallow, spread twice as far as its error
-    said. The Cauchy loss bounds each step's weight, and where the trust-region fit
-    stops on a tread's edge, the Nelder-Mead simplex, which takes no derivatives, goes
-    on down the stairs. The result is the trust-region fit's, with the simplex's
+    whose treads hold the fit far from its minimum: an 8 mm bulge whose near rim every
+    beam from afar grazes read 7.4 mm, spread half as far again as its error said. The
+    Cauchy loss bounds each step's weight, and where the trust-region fit stops on a
+    tread's edge, the Nelder-Mead simplex, which takes no derivatives, goes on down the
+    stairs. The result is the trust-region fit's, with the simplex's
     parameters where they cost less, their misfits and their Jacobian (unweighted).
 
     Each misfit's derivatives are those of the hit it measures, by the implicit function
     theorem: ``dt/dq = (d wall / dq) / g'``, the wall's change with q at the hit over g',
     the rate the beam goes into the wall there (held at `GRAZING` at least). Finite
-    differences of the misfits would take the steps for slopes a billion times steeper
+    differences of the misfits would take the steps for slopes a million times steeper
     than any."""
     start = np.asarray(start, dtype=float)
     deviation = range_deviation(values - model(start)(a, b), steps)
