@@ -1,6 +1,7 @@
 """Per-point radii, gap bridges and the range noise model on planes with known sampling."""
 
 import numpy as np
+import pytest
 
 from zeroset.density import (
     BRIDGE_REACH,
@@ -151,3 +152,21 @@ def test_range_noise_has_no_negative_slope(rng):
     sigma, (_, slope) = range_noise(points, knn(points, 16), np.array([0.0, 0.0, 0.3]), noise=0.002)
     assert slope >= 0.0
     assert np.all(sigma >= 0.001)
+
+
+@pytest.mark.parametrize("tilt, bridged", [(45.0, True), (70.0, False)])
+def test_a_chord_is_bridged_within_60_degrees_of_both_tangent_planes(tilt, bridged, rng):
+    # The bands lie in z = 0 and their gaps run along x; normals tilted towards y by `tilt`
+    # make a chord square across a gap leave both tangent planes by `tilt` degrees: noisy
+    # normals of one surface up to `ALONG`, beyond it no longer one surface. (Chords up to
+    # `CROSSING`'s 32 degrees off square lean less into the planes: at 70 a tenth stay.)
+    points = _banded(rng)
+    blind = gap_bridges(points, _sectors(points), rho_delta=0.015)
+    angle = np.radians(tilt)
+    normals = np.tile([0.0, np.sin(angle), np.cos(angle)], (points.shape[0], 1))
+    seen = gap_bridges(points, _sectors(points), rho_delta=0.015, normals=normals)
+    assert blind.shape[0] > 10_000
+    if bridged:
+        np.testing.assert_array_equal(seen, blind)
+    else:
+        assert seen.shape[0] < 0.2 * blind.shape[0]

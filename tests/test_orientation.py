@@ -149,3 +149,21 @@ def test_viewpoint_rows_must_be_finite_or_all_nan(rng):
     sensors[3, 1] = np.nan
     with pytest.raises(ValueError, match="row 3"):
         orient_normals(c, c, viewpoints=sensors)
+
+
+@pytest.mark.parametrize("tilt, joined", [(20.0, True), (40.0, False)])
+def test_a_part_is_joined_by_a_step_within_30_degrees_of_both_tangent_planes(tilt, joined):
+    # Two patches of the plane z = 0, 3 cm apart along x; normals tilted towards x by
+    # `tilt` make the step between their closest points leave both tangent planes by
+    # `tilt` degrees: one surface up to `ON_ONE_SURFACE`, two sheets beyond.
+    from zeroset.orientation import _bridges
+
+    x, y = np.meshgrid(np.arange(0.0, 0.2, 0.01), np.arange(0.0, 0.2, 0.01))
+    big = np.c_[x.ravel(), y.ravel(), np.zeros(x.size)]
+    small = big[big[:, 0] < 0.05] + [0.22, 0.0, 0.0]
+    centroids = np.concatenate([big, small])
+    component = np.repeat([0, 1], [big.shape[0], small.shape[0]])
+    angle = np.radians(tilt)
+    normals = np.tile([np.sin(angle), 0.0, np.cos(angle)], (centroids.shape[0], 1))
+    edges = _bridges(centroids, normals, component, np.full(centroids.shape[0], 0.1))
+    assert (edges.nnz == 1) == joined

@@ -16,7 +16,7 @@ import numpy as np
 from ._kernels.density import sector_nearest
 from ._kernels.linalg import eigh_rows
 from ._kernels.normals import centroid_covariance
-from .neighbours import build_tree, step_cosines
+from .neighbours import build_tree, off_plane, step_cosines
 
 __all__ = [
     "SECTORS",
@@ -51,10 +51,11 @@ EDGE_K = 256
 #: neighbours (within about 30 degrees): chords across a gap leave that way, chords
 #: along an open end, or across a round hole off its centre, do not.
 CROSSING = 0.85
-#: Largest |cosine| between a gap bridge's chord and the normal at either end: the chord
-#: lies within 60 degrees of both tangent planes. Within 30 degrees (0.5) the noisy normals
-#: of the SICK scans lose bridges they need (mean distance 50.9 -> 64.1 mm on scan 0).
-ALONG = float(np.cos(np.radians(30.0)))
+#: A gap bridge's chord lies within this many degrees of the tangent planes at both its
+#: ends (`neighbours.off_plane`). Within 30 degrees (orientation's `ON_ONE_SURFACE`) the
+#: noisy normals of the SICK scans lose bridges they need (mean distance 50.9 -> 64.1 mm
+#: on scan 0).
+ALONG = 60.0
 
 
 def sector_distances(points, indices, distances) -> tuple[np.ndarray, np.ndarray]:
@@ -163,7 +164,7 @@ def gap_bridges(points, sectors, *, rho_delta: float, tree=None, normals=None) -
     open ends (nothing lies beyond). A chord must leave its first point on the side away
     from that point's neighbours (cosine at least ``CROSSING``): it crosses the gap, and
     does not run along the edge of an open end. With `normals`, a chord must also lie
-    within ``ALONG`` of both its ends' tangent planes: one across the gap between two
+    within ``ALONG`` degrees of both its ends' tangent planes: one across the gap between two
     sheets (two plates, a pipe inside a pipe) runs along neither.
 
     Parameters
@@ -205,7 +206,7 @@ def gap_bridges(points, sectors, *, rho_delta: float, tree=None, normals=None) -
     ) * np.linalg.norm(away[rows], axis=1)
     if normals is not None:
         cos_start, cos_end = step_cosines(chord, normals[edge[rows]], normals[partner])
-        leaves &= (np.abs(cos_start) <= ALONG) & (np.abs(cos_end) <= ALONG)
+        leaves &= np.maximum(off_plane(cos_start), off_plane(cos_end)) <= ALONG
     rows, direction, start, end = rows[leaves], direction[leaves], start[leaves], end[leaves]
     # Each chord is cut into `steps` pieces; its steps - 1 inner cut points are bridges.
     steps = np.ceil(length[rows, direction] / (BRIDGE_STEP * rho_delta)).astype(np.int64)

@@ -7,7 +7,15 @@ from scipy.spatial import cKDTree
 
 from .types import Neighbourhoods
 
-__all__ = ["ball_pairs", "build_tree", "knn", "restrict", "spatial_order", "step_cosines"]
+__all__ = [
+    "ball_pairs",
+    "build_tree",
+    "knn",
+    "off_plane",
+    "restrict",
+    "spatial_order",
+    "step_cosines",
+]
 
 
 def build_tree(points: np.ndarray) -> cKDTree:
@@ -42,6 +50,14 @@ def step_cosines(step, normals_a, normals_b) -> tuple[np.ndarray, np.ndarray]:
         np.einsum("ij,ij->i", unit_step, normals_a),
         np.einsum("ij,ij->i", unit_step, normals_b),
     )
+
+
+def off_plane(cosines) -> np.ndarray:
+    """The angle (degrees) of a step from a tangent plane, given its cosine to the plane's
+    unit normal (`step_cosines`, either sign): 0 along the plane, 90 straight across it.
+    The same-surface tests compare it with their limits: a step within a limit of both
+    its ends' planes runs along one surface."""
+    return np.degrees(np.arcsin(np.minimum(np.abs(cosines), 1.0)))
 
 
 def spatial_order(points: np.ndarray) -> np.ndarray:

@@ -9,7 +9,7 @@ from scipy.sparse.csgraph import breadth_first_order, connected_components, mini
 from ._kernels.orientation import component_extremes, propagate_signs
 from ._validate import as_points, as_viewpoints, positive
 from .errors import InputError
-from .neighbours import build_tree, knn, step_cosines
+from .neighbours import build_tree, knn, off_plane, step_cosines
 from .types import VIEWPOINTS_UNTRUSTED, Neighbourhoods, Orientation
 
 __all__ = ["orient_normals"]
@@ -30,9 +30,13 @@ UNTRUSTED = 0.05
 ABRUPT = 0.1
 #: Mean |cosine| from which a component's own sensors decide its sign in the vote.
 DECISIVE = 0.3
-#: A component is joined to a larger one only by a pair of points whose step lies within 60
-#: degrees of both their tangent planes: |cosine| to each normal at most this (`_bridges`).
-ON_ONE_SURFACE = 0.5
+#: A component is joined to a larger one only by a pair of points whose step lies within
+#: this many degrees of both their tangent planes (`_bridges`, `neighbours.off_plane`);
+#: two components face each other across a gap where the step leaves both planes by more
+#: (`_unstack`). The gap bridges of `density` allow 60 degrees (`density.ALONG`, where the
+#: SICK scans' noisy normals lose bridges at 30); joins here have kept 30 since they
+#: were made.
+ON_ONE_SURFACE = 30.0
 #: Without viewpoints, components whose points come within this many of their max_edge of
 #: each other are neighbours that must not point the same way across the gap (`_unstack`);
 #: the largest this many components take part, each with at most `STACK_SAMPLES` points.
@@ -189,9 +193,9 @@ def _unstack(centroids, normals, component, reach) -> np.ndarray:
     each other (an air gap) or away (the two faces of a slab), they agree in sign across
     it, and closed surfaces already do either. Points are paired with the nearest point of
     another component within their `reach` (N,), where that pairing is mutual (so the two
-    face each other); each pair whose step d from i to j crosses both tangent planes
-    (|cosine| to each normal above `ON_ONE_SURFACE`; a step along one surface, between two
-    pieces of it, says nothing) votes sign(n_i . d) sign(-n_j . d), and the components are
+    face each other); each pair whose step d from i to j crosses both tangent planes (more
+    than `ON_ONE_SURFACE` degrees from each; a step along one surface, between two pieces
+    of it, says nothing) votes sign(n_i . d) sign(-n_j . d), and the components are
     turned from the largest, along the strongest votes, so that every vote followed is
     positive.
     """
@@ -223,7 +227,7 @@ def _unstack(centroids, normals, component, reach) -> np.ndarray:
     i = i[partner[partner[i]] == i]
     j = partner[i]
     cos_i, cos_j = step_cosines(centroids[j] - centroids[i], normals[i], normals[j])
-    across = (np.abs(cos_i) > ON_ONE_SURFACE) & (np.abs(cos_j) > ON_ONE_SURFACE)
+    across = np.minimum(off_plane(cos_i), off_plane(cos_j)) > ON_ONE_SURFACE
     # n_i . d > 0: i faces j; -n_j . d > 0: j faces i; facing alike agrees
     votes = np.zeros((taking.size, taking.size))  # between the components taking part
     np.add.at(
@@ -312,8 +316,8 @@ def _bridges(centroids, normals, component, reach) -> sparse.csr_matrix:
     to the surface next to them, and a wall seen through sparse scan lines into pieces; each
     is joined by its closest pair of points to one of the ``STACK_COMPONENTS`` largest
     components larger than itself, as Hoppe's Euclidean minimum spanning tree would join
-    it, if that pair lies on one surface: the step between them within 60 degrees of both
-    tangent planes (|cos| to each normal at most `ON_ONE_SURFACE`). Separate objects stay
+    it, if that pair lies on one surface: the step between them within `ON_ONE_SURFACE`
+    degrees of both tangent planes. Separate objects stay
     apart, and so do two sheets facing each other across a gap (two plates, two pipes one
     inside the other).
     """
@@ -336,7 +340,7 @@ def _bridges(centroids, normals, component, reach) -> sparse.csr_matrix:
         cos_a, cos_b = step_cosines(
             centroids[mate] - centroids[others], normals[others], normals[mate]
         )
-        found &= (np.abs(cos_a) <= ON_ONE_SURFACE) & (np.abs(cos_b) <= ON_ONE_SURFACE)
+        found &= np.maximum(off_plane(cos_a), off_plane(cos_b)) <= ON_ONE_SURFACE
         partner[others[found]], gap[others[found]] = mate[found], distance[found]
     # The closest pair of each component.
     joined = np.flatnonzero(partner >= 0)
