@@ -158,6 +158,50 @@ def test_no_surface_exits_1(sphere_file, tmp_path, capsys):
     assert "rho_delta" in capsys.readouterr().err
 
 
+def test_version_prints_the_package_version(capsys):
+    from zeroset import __version__
+
+    with pytest.raises(SystemExit) as exit_info:
+        main(["--version"])
+    assert exit_info.value.code == 0
+    assert capsys.readouterr().out.strip() == f"zeroset {__version__}"
+
+
+@pytest.mark.parametrize("error", [ValueError, TypeError, IndexError])
+def test_a_library_bug_is_an_internal_error_not_bad_input(
+    error, sphere_file, tmp_path, capsys, monkeypatch
+):
+    from zeroset import pipeline
+
+    def broken(*args, **kwargs):
+        raise error("index 7 is out of bounds for axis 0 with size 3")
+
+    monkeypatch.setattr(pipeline, "reconstruct", broken)
+    assert main(["reconstruct", str(sphere_file), "-o", str(tmp_path / "m.ply")]) == 1
+    (line,) = capsys.readouterr().err.splitlines()
+    assert line.startswith(f"zeroset: error: internal error, please report it: {error.__name__}")
+    assert not (tmp_path / "m.ply").exists()
+
+
+def test_a_bad_option_of_the_library_is_bad_input(sphere_file, tmp_path, capsys):
+    code = main(["reconstruct", str(sphere_file), "-o", str(tmp_path / "m.ply"), "--k-max", "3"])
+    assert code == 2
+    (line,) = capsys.readouterr().err.splitlines()
+    assert line.startswith("zeroset: error: ") and "k_max must exceed" in line
+
+
+def test_reports_without_a_peak_memory_where_the_platform_gives_none(
+    sphere_file, tmp_path, monkeypatch
+):
+    from zeroset import _progress
+
+    monkeypatch.setattr(_progress, "resource", None)  # as on Windows
+    report = tmp_path / "r.json"
+    args = ["reconstruct", str(sphere_file), "-o", str(tmp_path / "m.ply"), "--report"]
+    assert main([*args, str(report), "--quiet"]) == 0
+    assert "peak_mib" not in json.loads(report.read_text())
+
+
 def test_bad_option_value_is_an_argparse_error(sphere_file, tmp_path):
     with pytest.raises(SystemExit) as exit_info:
         main(["reconstruct", str(sphere_file), "-o", str(tmp_path / "m.ply"), "--viewpoint", "1,2"])

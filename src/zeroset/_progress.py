@@ -8,7 +8,12 @@ from contextlib import contextmanager
 
 from tqdm.auto import tqdm
 
-__all__ = ["Stages", "add_counts"]
+try:  # POSIX only
+    import resource
+except ImportError:  # pragma: no cover - Windows
+    resource = None
+
+__all__ = ["Stages", "add_counts", "peak_mib"]
 
 
 class Stages:
@@ -62,3 +67,12 @@ def add_counts(total: dict, counts: dict) -> dict:
         else:
             total[name] += value
     return total
+
+
+def peak_mib() -> float | None:
+    """The process' peak resident memory so far, MiB; None where the platform does not
+    say (Windows)."""
+    if resource is None:
+        return None
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    return peak / (1024 * 1024) if sys.platform == "darwin" else peak / 1024  # bytes on macOS

@@ -15,14 +15,16 @@ HTML_SUFFIXES = (".html", ".htm")
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Run the command line; return the exit status (0 ok, 1 no surface, 2 bad input).
+    """Run the command line; return the exit status (0 ok, 1 no surface or an internal
+    error, 2 bad input).
 
     Every failure prints one line, ``zeroset: error: PATH: what is wrong``, and ``--debug``
     shows the traceback instead. Every change to the surface beyond Hoppe's method
     (`zeroset.SurfaceWarning`) prints one line, ``zeroset: warning: ...``, unless
     ``--quiet``. Messages from the pipeline, which knows no file names, get
-    the path of the command's ``input``. Any other exception is a bug, reported as such
-    with exit status 1.
+    the path of the command's ``input``. Bad input is an `InputError` (or the system's
+    `OSError`, or too little memory); any other exception, a ``ValueError`` from deep
+    inside too, is a bug, reported as such with exit status 1.
     """
     parser = _parser()
     args = parser.parse_args(argv)
@@ -49,7 +51,7 @@ def main(argv: list[str] | None = None) -> int:
         if args.debug:
             raise
         message = " ".join(str(exc).split()) or type(exc).__name__
-        expected = (ZerosetError, ValueError, TypeError, OSError, MemoryError)
+        expected = (ZerosetError, OSError, MemoryError)
         if isinstance(exc, MemoryError):
             message = f"out of memory ({message})"
         elif not isinstance(exc, expected):
@@ -71,6 +73,7 @@ def _as_list(value) -> list:
 
 def _parser() -> argparse.ArgumentParser:
     """Build the argument parser; reconstruction options come from ReconstructionConfig."""
+    from . import __version__
     from .io import MESH_FORMATS, POINT_FORMATS, POSE_FORMATS
 
     mesh_help = "mesh: " + " ".join(MESH_FORMATS)
@@ -78,6 +81,7 @@ def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="zeroset", description="Triangle meshes from noisy point clouds (Hoppe 1992)."
     )
+    parser.add_argument("--version", action="version", version=f"zeroset {__version__}")
     parser.set_defaults(command=None, debug=False)
     commands = parser.add_subparsers(title="commands")
 
@@ -978,9 +982,8 @@ def _finish(
     """Write the mesh, reports (JSON or HTML, by suffix) and preview; print the summary.
 
     `inspection` is an (Inspection, pictures) pair from `_inspect`, shown in HTML reports."""
-    import resource
-
     from . import io
+    from ._progress import peak_mib
     from .htmlreport import write_html_report
     from .report import format_report, reconstruction_report
 
@@ -988,7 +991,8 @@ def _finish(
     report = reconstruction_report(
         result, source=source, points=points, reading=reading, registration=registration
     )
-    report["peak_mib"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    if (peak := peak_mib()) is not None:
+        report["peak_mib"] = peak
     for path in report_paths:
         if path.suffix.lower() in HTML_SUFFIXES:
             write_html_report(

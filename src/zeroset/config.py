@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field, fields, replace
 
+from .errors import InputError
+
 __all__ = ["CONTOURS", "RIMS", "SURFACES", "ReconstructionConfig"]
 
 #: The contouring methods of phase 1.
@@ -97,19 +99,19 @@ class ReconstructionConfig:
 
     def __post_init__(self) -> None:
         if self.contour not in CONTOURS:
-            raise ValueError(f"contour must be one of {CONTOURS}; got {self.contour!r}")
+            raise InputError(f"contour must be one of {CONTOURS}; got {self.contour!r}")
         if self.surface not in SURFACES:
-            raise ValueError(f"surface must be one of {SURFACES}; got {self.surface!r}")
+            raise InputError(f"surface must be one of {SURFACES}; got {self.surface!r}")
         if not isinstance(self.gap_bridges, bool):
-            raise ValueError(f"gap_bridges must be True or False; got {self.gap_bridges!r}")
+            raise InputError(f"gap_bridges must be True or False; got {self.gap_bridges!r}")
         if self.rim not in RIMS:
-            raise ValueError(f"rim must be one of {RIMS}; got {self.rim!r}")
+            raise InputError(f"rim must be one of {RIMS}; got {self.rim!r}")
         if self.fit_support is not None and not self.fit_support > 0:
-            raise ValueError(f"fit_support must be positive; got {self.fit_support!r}")
+            raise InputError(f"fit_support must be positive; got {self.fit_support!r}")
         if self.refine_levels is not None and not 0 <= self.refine_levels <= 4:
-            raise ValueError(f"refine_levels must lie in 0..4; got {self.refine_levels!r}")
+            raise InputError(f"refine_levels must lie in 0..4; got {self.refine_levels!r}")
         if self.k_max <= self.min_neighbours or self.k_max < self.k_min:
-            raise ValueError(
+            raise InputError(
                 f"k_max must exceed min_neighbours and be at least k_min; got k_max={self.k_max}, "
                 f"k_min={self.k_min}, min_neighbours={self.min_neighbours}"
             )

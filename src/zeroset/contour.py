@@ -22,6 +22,7 @@ from ._mc_table import (
     patch_table,
 )
 from ._validate import as_points, positive_per_row
+from .errors import InputError
 from .neighbours import build_tree
 from .octree import mean_by
 from .types import DistanceField, Mesh
@@ -191,7 +192,7 @@ def adaptive_cubes(field: DistanceField, points, centroids, normals, *, sizes=No
     centroids = as_points(centroids, "centroids")
     normals = as_points(normals, "normals")
     if not points.shape == centroids.shape == normals.shape:
-        raise ValueError(
+        raise InputError(
             f"points, centroids and normals must have one row each per point; got "
             f"{points.shape}, {centroids.shape} and {normals.shape}"
         )

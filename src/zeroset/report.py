@@ -199,9 +199,7 @@ def format_report(report: dict) -> str:
             if stats.get("orientation_turned")
             else ""
         )
-        + _disagreement(
-            stats.get("orientation_disagreement"), stats.get("viewpoints_untrusted")
-        ),
+        + _disagreement(stats.get("orientation_disagreement"), stats.get("viewpoints_untrusted")),
         f"grid        {stats['grid_vertices']:,} vertices evaluated, "
         f"{stats['undefined_grid_vertices']:,} undefined",
         *_cell_lines(stats),
@@ -290,8 +288,12 @@ def _tile_lines(stats: dict) -> list[str]:
         f"tiles       {stats['tiles']} ({'x'.join(map(str, stats['tile_grid']))}); "
         f"{stats['tile_components_flipped']} tile component(s) flipped to agree at the seams"
         + ("" if share is None else f", where {share:.2%} of the shared points still disagree")
-        + f"; peak memory per worker {min(peaks, default=0):,.0f}-"
-        f"{max(peaks, default=0):,.0f} MiB on {len(stats['worker_peak_mib'])} worker(s)"
+        + (
+            f"; peak memory per worker {min(peaks):,.0f}-{max(peaks):,.0f} MiB on "
+            f"{len(peaks)} worker(s)"
+            if peaks
+            else ""  # a platform that does not say
+        )
     ]
 
 

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import logging
 import math
-import resource
 import time
 import warnings
 from contextlib import contextmanager
@@ -23,7 +22,7 @@ import numpy as np
 from ._extras import require
 from ._kernels.orientation import component_extremes
 from ._lattice import LIMIT
-from ._progress import Stages, add_counts
+from ._progress import Stages, add_counts, peak_mib
 from ._validate import as_points
 from .config import ReconstructionConfig
 from .contour import keyed_marching_cubes
@@ -369,7 +368,8 @@ def reconstruct_tiled(
     warn_surface_changes(stats, config)
     peaks: dict = {}
     for piece in pieces:
-        peaks[piece["worker"]] = max(peaks.get(piece["worker"], 0.0), piece["peak_mib"])
+        if piece["peak_mib"] is not None:  # None where the platform does not say
+            peaks[piece["worker"]] = max(peaks.get(piece["worker"], 0.0), piece["peak_mib"])
     stats["worker_peak_mib"] = peaks
     return TiledReconstruction(
         mesh=mesh,
@@ -687,7 +687,7 @@ def _contour_tile(
     """Contour the cubes a tile owns (a Dask task)."""
     import socket
 
-    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    peak = peak_mib()
     worker = socket.gethostname()
     try:
         worker = require("distributed", "tiled reconstruction (--tiles)").get_worker().address
@@ -726,7 +726,7 @@ def _contour_tile(
     owned = _in_cubes(support.points, lo, hi, parameters.cube_size)
     if jets is not None:
         jets = select_jets(jets, _in_cubes(jets.centres, lo, hi, parameters.cube_size))
-    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    peak = peak_mib()
     return {
         **empty,
         "edge_keys": edge_keys,

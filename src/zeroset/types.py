@@ -9,6 +9,8 @@ from dataclasses import dataclass, field, fields
 
 import numpy as np
 
+from .errors import InputError
+
 __all__ = [
     "DistanceField",
     "Jets",
@@ -19,6 +21,26 @@ __all__ = [
     "PointCloud",
     "TangentPlanes",
 ]
+
+
+def _rows(value, dtype, name: str) -> np.ndarray:
+    """`value` as a C-contiguous (K, 3) array of `dtype` (an empty one as (0, 3)); an
+    `InputError` naming the Mesh's field `name` where it is none (ragged, not numbers,
+    not three columns, or not whole numbers for an integer `dtype`)."""
+    try:
+        array = np.asarray(value)
+    except ValueError as error:  # ragged
+        raise InputError(f"Mesh {name} must be a (K, 3) array; {error}") from None
+    if array.size == 0:
+        array = array.reshape(0, 3)
+    if array.ndim != 2 or array.shape[1] != 3:
+        raise InputError(f"Mesh {name} must be a (K, 3) array; got shape {array.shape}")
+    if not (np.issubdtype(array.dtype, np.number) or array.dtype == bool):
+        raise InputError(f"Mesh {name} must hold numbers; got {array.dtype}")
+    if np.issubdtype(dtype, np.integer) and not np.issubdtype(array.dtype, np.integer):
+        if not np.array_equal(array, np.round(array)):
+            raise InputError(f"Mesh {name} must hold whole numbers (vertex indices)")
+    return np.ascontiguousarray(array, dtype=dtype)
 
 
 class _Frozen:
@@ -268,10 +290,26 @@ class Mesh(_Frozen):
     ----------
     vertices : (M, 3) float64
     faces : (F, 3) int64, counter-clockwise seen from outside
+
+    Both are coerced on construction, as trimesh's setters do: any (K, 3) array-like of
+    numbers (faces of whole numbers, each indexing a vertex) becomes a C-contiguous array
+    of its dtype, and anything else raises `zeroset.errors.InputError`.
     """
 
     vertices: np.ndarray
     faces: np.ndarray
+
+    def __post_init__(self) -> None:
+        vertices = _rows(self.vertices, np.float64, "vertices")
+        faces = _rows(self.faces, np.int64, "faces")
+        if faces.size and (faces.min() < 0 or faces.max() >= vertices.shape[0]):
+            raise InputError(
+                f"Mesh faces must index its {vertices.shape[0]} vertices; got indices "
+                f"{faces.min()} to {faces.max()}"
+            )
+        object.__setattr__(self, "vertices", vertices)
+        object.__setattr__(self, "faces", faces)
+        super().__post_init__()
 
     @property
     def n_vertices(self) -> int:
