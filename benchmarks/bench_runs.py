@@ -216,8 +216,8 @@ def _missed(row: dict) -> str:
     """A missed defect in words: its truth, the points on it and its depth's bound."""
     truth = row["truth"]
     return (
-        f"a {1000 * truth['depth']:.1f} mm {truth['kind']} {100 * truth['width']:.1f} cm wide "
-        f"with {row['footprint']} points on it (bound ±{1960 * row['bound']:.1f} mm)"
+        f"the {1000 * truth['depth']:.1f} mm {truth['kind']}, {100 * truth['width']:.1f} cm "
+        f"wide, with {row['footprint']} points on it (bound ±{1960 * row['bound']:.1f} mm)"
     )
 
 
@@ -248,11 +248,9 @@ def _summary(results: list[dict]) -> list[str]:
         f"probability {100 * 0.95 ** len(found):.1f} %); interval no wider than ±3 mm "
         f"{len(narrow)}/{len(found)}.",
         f"- **What the points allow** (the bound: the Cramer-Rao bound of the depth, see "
-        f"`_depth_bound`): of the {len(beyond)} intervals wider than ±3 mm, {len(bounded)} "
-        f"have a bound wider than ±3 mm too{bounds}: for those, no unbiased estimate from "
-        "their points meets the target. Missed: "
-        + (", ".join(map(_missed, missed)) or "none")
-        + ".",
+        f"`_depth_bound`): of the {len(beyond)} intervals wider than ±3 mm, the bound is "
+        f"wider than ±3 mm too for {len(bounded)}{bounds}: there no unbiased estimate from "
+        "the points meets the target. Missed: " + (", ".join(map(_missed, missed)) or "none") + ".",
         f"- **Undamaged runs**: {sum(r['false'] for r in results)} false defects, "
         f"{sum(r['false_branches'] for r in results)} false branches, "
         f"{sum(r['missed_branches'] for r in results)} tees missed. Beside the true defects "
