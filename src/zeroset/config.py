@@ -39,7 +39,7 @@ class ReconstructionConfig:
         10, "smallest neighbourhood for a tangent plane (wider than rho_delta if needed)"
     )
     k_max: int = _opt(16, "largest neighbourhood for a tangent plane, the point included")
-    min_neighbours: int = _opt(4, "points with fewer others within rho_delta are outliers")
+    min_neighbours: int = _opt(4, "points with fewer others within their radius are outliers")
     orient_k: int = _opt(8, "neighbours per point in the orientation graph")
     averaging_cell: float | None = _opt(
         None, "average the points in cubic cells of this size before fitting planes (0: never)"

@@ -179,7 +179,7 @@ def estimate_parameters(
         if not averaging_cell >= 0.0:
             raise InputError(f"averaging_cell must be >= 0; got {averaging_cell!r}")
         notes.append(f"averaging_cell = {averaging_cell:.6g}: given")
-    notes.append(f"min_neighbours = {min_neighbours}: fewer others within rho_delta is an outlier")
+    notes.append(f"min_neighbours = {min_neighbours}: fewer others within its radius is an outlier")
     return Parameters(
         rho_delta=rho_delta,
         cube_size=cube_size,

@@ -562,8 +562,8 @@ def drop_sparse_points(cells: Cells, neighbours, density: Density, parameters: P
     if kept < config.k_max:
         raise ReconstructionError(
             f"only {kept} points are left after removing {keep.size - kept} "
-            f"outliers (fewer than {parameters.min_neighbours} neighbours within "
-            f"rho_delta={parameters.rho_delta:.4g}); increase rho_delta"
+            f"outliers (fewer than {parameters.min_neighbours} neighbours within their "
+            f"radius, at least rho_delta={parameters.rho_delta:.4g}); increase rho_delta"
         )
     row = np.where(keep, np.cumsum(keep) - 1, -1)
     viewpoints = cells.viewpoints

@@ -67,7 +67,7 @@ FAR = 0.5
 #: Steps of regula falsi (Illinois) that place each crossing on its edge.
 CROSSING_STEPS = 4
 #: How far, over the smallest empty ball's radius, a centre may climb the distance to the
-#: points, in how many steps; and the largest ball, over the smallest.
+#: points, and in how many steps.
 CLIMB = 0.5
 CLIMB_STEPS = 8
 #: Points within this many radii of an empty ball count around it, and the widest angle
