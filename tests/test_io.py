@@ -6,6 +6,7 @@ import os
 import re
 import stat
 import time
+from types import SimpleNamespace
 
 import numpy as np
 import plyfile
@@ -582,8 +583,10 @@ def test_write_errors(tmp_path):
         zio.write_points(tmp_path / "dir.ply", np.zeros((3, 3)))
     with pytest.raises(InputError, match="mesh.ply: mesh has no faces"):
         zio.write_mesh(tmp_path / "mesh.ply", Mesh(np.zeros((3, 3)), np.zeros((0, 3), int)))
+    # a Mesh checks its faces itself; any object with vertices and faces is checked here
+    broken = SimpleNamespace(vertices=np.zeros((3, 3)), faces=np.array([[0, 1, 3]]))
     with pytest.raises(InputError, match=r"mesh.ply: mesh faces index vertices outside"):
-        zio.write_mesh(tmp_path / "mesh.ply", Mesh(np.zeros((3, 3)), np.array([[0, 1, 3]])))
+        zio.write_mesh(tmp_path / "mesh.ply", broken)
     with pytest.raises(InputError, match=r"points.xyz: points contain 1 non-finite"):
         zio.write_points(tmp_path / "points.xyz", [[0, 0, np.nan]])
     with pytest.raises(InputError, match=r"points.xyz: 1 points but 2 normals"):

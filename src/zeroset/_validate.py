@@ -71,8 +71,17 @@ def as_viewpoints(values, rows: int) -> np.ndarray:
 
 
 def as_faces(values, n_vertices: int, name: str = "faces") -> np.ndarray:
-    """Return `values` as a C-contiguous (F, 3) int64 array indexing `n_vertices` vertices."""
-    array = np.array(values, dtype=np.int64, order="C", copy=True)
+    """Return `values` as a new C-contiguous (F, 3) int64 array indexing `n_vertices`
+    vertices: whole numbers, not truncated ones."""
+    try:
+        given = np.asarray(values)
+    except ValueError as exc:  # ragged rows
+        raise InputError(f"{name} must have shape (F, 3); {exc}") from None
+    if not (np.issubdtype(given.dtype, np.integer) or np.issubdtype(given.dtype, np.floating)):
+        raise TypeError(f"{name} must be an array of whole numbers; got {given.dtype}")
+    if np.issubdtype(given.dtype, np.floating) and not np.array_equal(given, np.round(given)):
+        raise InputError(f"{name} must hold whole numbers (vertex indices)")
+    array = np.array(given, dtype=np.int64, order="C", copy=True)
     if array.ndim != 2 or array.shape[1] != 3:
         raise InputError(f"{name} must have shape (F, 3); got {array.shape}")
     if array.size and (array.min() < 0 or array.max() >= n_vertices):

@@ -9,7 +9,7 @@ from dataclasses import dataclass, field, fields
 
 import numpy as np
 
-from .errors import InputError
+from ._validate import as_faces, as_points
 
 __all__ = [
     "DistanceField",
@@ -23,24 +23,10 @@ __all__ = [
 ]
 
 
-def _rows(value, dtype, name: str) -> np.ndarray:
-    """`value` as a C-contiguous (K, 3) array of `dtype` (an empty one as (0, 3)); an
-    `InputError` naming the Mesh's field `name` where it is none (ragged, not numbers,
-    not three columns, or not whole numbers for an integer `dtype`)."""
-    try:
-        array = np.asarray(value)
-    except ValueError as error:  # ragged
-        raise InputError(f"Mesh {name} must be a (K, 3) array; {error}") from None
-    if array.size == 0:
-        array = array.reshape(0, 3)
-    if array.ndim != 2 or array.shape[1] != 3:
-        raise InputError(f"Mesh {name} must be a (K, 3) array; got shape {array.shape}")
-    if not (np.issubdtype(array.dtype, np.number) or array.dtype == bool):
-        raise InputError(f"Mesh {name} must hold numbers; got {array.dtype}")
-    if np.issubdtype(dtype, np.integer) and not np.issubdtype(array.dtype, np.integer):
-        if not np.array_equal(array, np.round(array)):
-            raise InputError(f"Mesh {name} must hold whole numbers (vertex indices)")
-    return np.ascontiguousarray(array, dtype=dtype)
+def _rows(values):
+    """`values` as they are, or, when empty (``[]``, an empty array), as (0, 3): no rows."""
+    empty = values.size == 0 if isinstance(values, np.ndarray) else len(values) == 0
+    return np.empty((0, 3)) if empty else values
 
 
 class _Frozen:
@@ -292,24 +278,20 @@ class Mesh(_Frozen):
     faces : (F, 3) int64, counter-clockwise seen from outside
 
     Both are coerced on construction, as trimesh's setters do: any (K, 3) array-like of
-    numbers (faces of whole numbers, each indexing a vertex) becomes a C-contiguous array
-    of its dtype, and anything else raises `zeroset.errors.InputError`.
+    finite numbers (faces of whole numbers, each indexing a vertex; an empty list for
+    none) becomes a new C-contiguous array of its dtype, and anything else raises
+    `zeroset.errors.InputError` (`TypeError` where it holds no numbers).
     """
 
     vertices: np.ndarray
     faces: np.ndarray
 
     def __post_init__(self) -> None:
-        vertices = _rows(self.vertices, np.float64, "vertices")
-        faces = _rows(self.faces, np.int64, "faces")
-        if faces.size and (faces.min() < 0 or faces.max() >= vertices.shape[0]):
-            raise InputError(
-                f"Mesh faces must index its {vertices.shape[0]} vertices; got indices "
-                f"{faces.min()} to {faces.max()}"
-            )
-        object.__setattr__(self, "vertices", vertices)
-        object.__setattr__(self, "faces", faces)
-        super().__post_init__()
+        vertices = as_points(_rows(self.vertices), "Mesh vertices", min_rows=0)
+        faces = as_faces(_rows(self.faces), vertices.shape[0], "Mesh faces")
+        for name, value in (("vertices", vertices), ("faces", faces)):
+            value.flags.writeable = False  # new arrays: no second copy
+            object.__setattr__(self, name, value)
 
     @property
     def n_vertices(self) -> int:
