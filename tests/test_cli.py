@@ -75,6 +75,7 @@ def test_options_reach_the_pipeline(sphere_file, tmp_path):
 
 
 @pytest.mark.parametrize("flag, bridges", [("--gap-bridges", True), ("--no-gap-bridges", False)])
+@pytest.mark.slow
 def test_gap_bridges_flag_reaches_the_pipeline(flag, bridges, tmp_path):
     path = tmp_path / "scan.ply"
     io.write_points(path, scan_pipe(radius=0.1, rotation_step=1.0, rng=3).points)
@@ -110,6 +111,7 @@ def test_viewpoint_option_orients_towards_the_sensor(tmp_path):
 
 
 @pytest.mark.parametrize("quiet", [False, True])
+@pytest.mark.slow
 def test_surface_warnings_print_one_line_each(quiet, tmp_path, capsys):
     path = tmp_path / "torus.xyz"
     io.write_points(path, sample_torus(20_000, major=0.42, minor=0.13, noise=0.002, rng=0).points)
@@ -338,6 +340,7 @@ def test_synth_writes_points_and_truth_that_reconstruct_reads(kind, extra, tmp_p
     assert len(topology.boundary_loops(truth.faces)) == expected_loops
 
 
+@pytest.mark.slow
 def test_evaluate_reports_reference_points_and_quality(tmp_path, capsys):
     points = tmp_path / "tee.ply"
     assert (
@@ -377,6 +380,7 @@ def test_evaluate_missing_mesh_exits_2(tmp_path, capsys):
     assert "no such file" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_reconstruct_with_optimize_runs_phase_two_on_every_point(sphere_file, tmp_path, capsys):
     out, report_path = tmp_path / "mesh.ply", tmp_path / "r.json"
     code = main(
@@ -397,6 +401,7 @@ def test_reconstruct_with_optimize_runs_phase_two_on_every_point(sphere_file, tm
     assert "moves accepted" in capsys.readouterr().out
 
 
+@pytest.mark.slow
 def test_optimize_command_writes_a_smaller_mesh_and_a_report(sphere_file, tmp_path, capsys):
     start = tmp_path / "start.ply"
     assert main(["reconstruct", str(sphere_file), "-o", str(start), "--quiet"]) == 0
@@ -506,6 +511,7 @@ def test_bad_poses_and_options_end_in_one_line(tmp_path, capsys, poses_text, ext
     assert not (tmp_path / "m.ply").exists()
 
 
+@pytest.mark.slow
 def test_register_refines_poses_and_reports_residuals(tmp_path, capsys):
     files, poses = _scans_of_a_sphere(tmp_path)
     off = poses.copy()

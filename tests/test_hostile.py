@@ -89,6 +89,7 @@ def _check_mesh(mesh: Mesh, points: np.ndarray) -> None:
 
 
 @pytest.mark.parametrize("case", CASES, ids=[case.name for case in CASES])
+@pytest.mark.slow
 def test_command_line_ends_cleanly(case, tmp_path, capsys):
     source, output, blamed = _paths(case, tmp_path)
     before = output.read_bytes() if output.is_file() else None
@@ -106,6 +107,7 @@ def test_command_line_ends_cleanly(case, tmp_path, capsys):
 
 
 @pytest.mark.parametrize("case", CASES, ids=[case.name for case in CASES])
+@pytest.mark.slow
 def test_python_api_raises_zeroset_errors(case, tmp_path):
     source, output, blamed = _paths(case, tmp_path)
     expected = ReconstructionError if case.code == 1 else InputError
@@ -135,6 +137,7 @@ def test_python_api_raises_zeroset_errors(case, tmp_path):
 
 
 @pytest.mark.parametrize("name", SUBPROCESS_CASES)
+@pytest.mark.slow
 def test_real_entry_point_prints_no_traceback(name, tmp_path):
     case = BY_NAME[name]
     source, output, blamed = _paths(case, tmp_path)

@@ -86,6 +86,7 @@ def _unpack(entry):
 
 
 @pytest.mark.parametrize("page", ["reconstruction", "with inspection", "inspection"])
+@pytest.mark.slow
 def test_report_is_one_file_that_loads_nothing(report, inspected, page):
     paths = {"reconstruction": report[0], "with inspection": inspected[0]}
     text = paths.get(page, inspected[1]).read_text(encoding="utf-8")
@@ -97,6 +98,7 @@ def test_report_is_one_file_that_loads_nothing(report, inspected, page):
     assert "var THREE=" in text and "zeroset-report" in text  # three.js is inside
 
 
+@pytest.mark.slow
 def test_embedded_arrays_are_the_meshes_and_numbers_the_report(report):
     path, result, points = report
     text = path.read_text(encoding="utf-8")
@@ -116,6 +118,7 @@ def test_embedded_arrays_are_the_meshes_and_numbers_the_report(report):
     assert not any("deviation" in layer for layer in layers.values())
 
 
+@pytest.mark.slow
 def test_report_of_an_inspection_carries_its_deviations_defects_and_pictures(inspected):
     path, _, _, inspection = inspected
     text = path.read_text(encoding="utf-8")
@@ -153,6 +156,7 @@ def test_report_of_an_inspection_carries_its_deviations_defects_and_pictures(ins
     assert "<unrolled>" not in text  # captions are escaped
 
 
+@pytest.mark.slow
 def test_inspection_summary_reads_the_clock_and_has_no_nan(inspected):
     *_, inspection = inspected
     defect = Defect("bulge", 0.5, 0.0, 0.003, float("nan"), 0.4, 0.6, 350.0, 10.0, 0.09, 0.01)
@@ -172,6 +176,7 @@ def test_inspection_summary_reads_the_clock_and_has_no_nan(inspected):
     json.dumps(summary, allow_nan=False)  # ready for JSON as it is
 
 
+@pytest.mark.slow
 def test_deviation_goes_on_the_final_mesh_and_must_match_it(report, inspected, tmp_path):
     _, result, _ = report
     *_, inspection = inspected
@@ -194,6 +199,7 @@ def test_deviation_goes_on_the_final_mesh_and_must_match_it(report, inspected, t
     assert not (tmp_path / "not.html").exists()
 
 
+@pytest.mark.slow
 def test_inspection_report_of_a_mesh_read_from_a_file(inspected):
     _, path, mesh, inspection = inspected
     text = path.read_text(encoding="utf-8")
@@ -266,6 +272,7 @@ def _open(browser, path):
     assert browser.execute_script("return document.body.dataset.error || null") is None
 
 
+@pytest.mark.slow
 def test_viewer_draws_and_toggles_offline_without_console_errors(report):
     path, _, _ = report
     browser = _browser()
@@ -289,6 +296,7 @@ def test_viewer_draws_and_toggles_offline_without_console_errors(report):
         browser.quit()
 
 
+@pytest.mark.slow
 def test_viewer_colours_by_deviation_first_and_shows_the_inspection(inspected):
     report, page, _, inspection = inspected
     checked = "return document.querySelector(`input[data-layer='${arguments[0]}']`).checked"
@@ -335,6 +343,7 @@ def test_viewer_colours_by_deviation_first_and_shows_the_inspection(inspected):
         browser.quit()
 
 
+@pytest.mark.slow
 def test_viewer_tables_the_stations_defects_joints_and_centreline_check(inspected, tmp_path):
     *_, mesh, inspection = inspected
     dent = Defect("dent", 0.5, 330.0, -0.032, 5e-4, 0.45, 0.55, 320.0, 340.0, 0.09, 0.01, 6.4, True)

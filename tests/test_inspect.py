@@ -107,6 +107,7 @@ def test_clock_label_reads_a_clock_face():
     ]
 
 
+@pytest.mark.slow
 def test_centreline_of_a_straight_scan_is_its_axis(clean_scan):
     sample, inspection = clean_scan
     pipe = inspection.pipe
@@ -121,6 +122,7 @@ def test_centreline_of_a_straight_scan_is_its_axis(clean_scan):
     np.testing.assert_allclose(distance, 0.25, atol=1e-3)
 
 
+@pytest.mark.slow
 def test_a_clean_pipe_has_no_defect_and_no_ovality(clean_scan):
     sample, inspection = clean_scan
     assert inspection.defects.defects == ()
@@ -130,6 +132,7 @@ def test_a_clean_pipe_has_no_defect_and_no_ovality(clean_scan):
     assert abs(np.nanmedian(inspection.point_deviation)) < 2e-4
 
 
+@pytest.mark.slow
 def test_an_error_of_the_centreline_is_no_defect(clean_scan):
     """A centreline off its section's centre (as where a thin tail steered it) shifts
     every residual there by a wave round the wall; taken about the section, centre
@@ -147,6 +150,7 @@ def test_an_error_of_the_centreline_is_no_defect(clean_scan):
     assert np.nanmax(np.abs(wall.residual[stretch])) < 0.0015  # metres: half the kink
 
 
+@pytest.mark.slow
 def test_threshold_comes_from_the_points_noise_not_from_real_geometry():
     """Ovality and dents are real geometry: they leave the points' noise about the local
     wall, and so the threshold, where they were (the wall map's dispersion would not)."""
@@ -180,6 +184,7 @@ def test_significance_gives_the_false_alarms_of_smoothed_noise():
     assert 0.6 * asked * fields < regions < 1.5 * asked * fields
 
 
+@pytest.mark.slow
 def test_dents_in_a_scanned_pipe_are_found_with_depth_position_and_clock(dented_scan):
     sample, _, inspection = dented_scan
     assert len(inspection.defects.defects) == len(DENTS)
@@ -195,6 +200,7 @@ def test_dents_in_a_scanned_pipe_are_found_with_depth_position_and_clock(dented_
         assert 0 < found.area < np.pi * truth["width"] ** 2
 
 
+@pytest.mark.slow
 def test_depths_fitted_along_the_beams_are_unbiased_where_radial_ones_are_shallow(dented_scan):
     # Range noise along oblique beams blurs a dent and bunches the beams on its near flank,
     # so residuals measured radially read shallower; along the beams they do not.
@@ -210,6 +216,7 @@ def test_depths_fitted_along_the_beams_are_unbiased_where_radial_ones_are_shallo
     assert np.mean(errors["radial"]) < np.mean(errors["beams"]) - 0.25e-3
 
 
+@pytest.mark.slow
 def test_deviation_is_signed_inward_negative(dented_scan):
     sample, mesh, inspection = dented_scan
     truth = sample.truth_record["defects"][1]  # 15 mm
@@ -221,6 +228,7 @@ def test_deviation_is_signed_inward_negative(dented_scan):
     assert np.nanmin(inspection.vertex_deviation) < -0.01  # the mesh shows the dent
 
 
+@pytest.mark.slow
 def test_ovality_of_three_percent_is_measured_within_three_tenths_of_a_percent():
     sample = scan_damaged_pipe(ovality=0.03, ovality_clock=30.0, rotation_step=2.0, rng=2)
     inspection = inspect_pipe(_reconstructed(sample), sample.points)
@@ -233,6 +241,7 @@ def test_ovality_of_three_percent_is_measured_within_three_tenths_of_a_percent()
     assert all(abs(d.depth) < 3.75e-3 for d in inspection.defects.defects)
 
 
+@pytest.mark.slow
 def test_elbow_dents_and_bulges_are_found_and_a_clean_elbow_has_none():
     defects = (Defect("dent", 1.0, 90.0, 0.008, 0.08), Defect("bulge", 0.3, 270.0, 0.01, 0.08))
     damaged = damaged_pipe(150_000, shape="elbow", noise=0.002, defects=defects, rng=3)
@@ -251,6 +260,7 @@ def test_elbow_dents_and_bulges_are_found_and_a_clean_elbow_has_none():
     assert abs(clean_inspection.pipe.length - (1.0 + 0.3 * np.pi)) < 0.03
 
 
+@pytest.mark.slow
 def test_a_clean_elbow_scanned_along_its_centreline_has_no_defect():
     """The scan lines pile onto the outer wall of the bend, and the curvature jumps where the
     bend meets a leg: neither is a defect."""
@@ -264,6 +274,7 @@ def test_a_clean_elbow_scanned_along_its_centreline_has_no_defect():
     assert abs(inspection.pipe.length - centreline) < 0.03
 
 
+@pytest.mark.slow
 def test_a_tee_reports_its_branch_and_no_defect_at_the_opening():
     sample = sample_tee(150_000, noise=0.002, rng=5)
     inspection = inspect_pipe(_reconstructed(sample), sample.points)
@@ -287,6 +298,7 @@ def test_the_centreline_follows_the_straight_run_of_a_tee(rng):
     assert np.ptp(path[:, 2]) > 1.1
 
 
+@pytest.mark.slow
 def test_a_mesh_far_from_the_origin_is_inspected_without_its_points():
     defects = (Defect("dent", 1.0, 90.0, 0.015, 0.08),)
     sample = damaged_pipe(40_000, noise=0.002, defects=defects, rng=6)
@@ -306,6 +318,7 @@ def test_a_mesh_far_from_the_origin_is_inspected_without_its_points():
     assert np.hypot(centres[:, 0], centres[:, 1]).max() < 2e-3
 
 
+@pytest.mark.slow
 def test_nominal_diameter_and_threshold_are_used_as_given(dented_scan):
     sample, mesh, _ = dented_scan
     inspection = inspect_pipe(mesh, sample.points, nominal_diameter=0.51, threshold=0.008)
@@ -322,6 +335,7 @@ def test_a_sphere_is_not_a_pipe():
         fit_pipe(_reconstructed(sample))
 
 
+@pytest.mark.slow
 def test_summary_is_json_and_matches_the_defects(dented_scan):
     _, _, inspection = dented_scan
     facts = json.loads(json.dumps(inspection_summary(inspection)))
@@ -330,6 +344,7 @@ def test_summary_is_json_and_matches_the_defects(dented_scan):
     assert facts["defects"][0]["clock_time"] == clock_label(inspection.defects.defects[0].clock)
 
 
+@pytest.mark.slow
 def test_cli_inspect_writes_tables_pictures_and_report(tmp_path, dented_scan, capsys):
     sample, mesh, inspection = dented_scan
     mesh_path = io.write_mesh(tmp_path / "pipe.ply", mesh)
@@ -354,6 +369,7 @@ def test_cli_inspect_writes_tables_pictures_and_report(tmp_path, dented_scan, ca
     assert (out / "defects.csv").stat().st_mtime_ns == before
 
 
+@pytest.mark.slow
 def test_cli_inspect_writes_the_joints_and_shows_what_was_found(
     tmp_path, dented_scan, presented, monkeypatch, capsys
 ):
@@ -377,6 +393,7 @@ def test_cli_inspect_writes_the_joints_and_shows_what_was_found(
     assert "joints.csv" in printed.splitlines()[-1]  # "inspection  written to ..."
 
 
+@pytest.mark.slow
 def test_cli_inspect_rejects_what_is_not_a_pipe(tmp_path, capsys):
     sphere = _reconstructed(sample_sphere(20_000, noise=0.001, rng=8))
     path = io.write_mesh(tmp_path / "ball.ply", Mesh(sphere.vertices, sphere.faces))
@@ -419,6 +436,7 @@ def _rows(path) -> list[dict]:
         return list(csv.DictReader(handle))
 
 
+@pytest.mark.slow
 def test_ovality_table_has_the_mean_diameter_and_the_unreliable_stretches(tmp_path, presented):
     rows = _rows(write_ovality_csv(tmp_path / "ovality.csv", presented))
     assert list(rows[0]) == [
@@ -439,6 +457,7 @@ def test_ovality_table_has_the_mean_diameter_and_the_unreliable_stretches(tmp_pa
     assert [r["unreliable"] for r in rows] == [stretch_.reason if i else "" for i in inside]
 
 
+@pytest.mark.slow
 def test_summary_gives_diameters_and_ovality_over_the_stations(presented):
     stations = inspection_summary(presented)["stations"]
     found = presented.ovality
@@ -458,6 +477,7 @@ def test_summary_gives_diameters_and_ovality_over_the_stations(presented):
         )
 
 
+@pytest.mark.slow
 def test_defects_give_their_depth_in_percent_and_b31_8_marks_those_to_assess(tmp_path, presented):
     defects = presented.defects.defects
     rows = _rows(write_defects_csv(tmp_path / "defects.csv", presented))
@@ -480,6 +500,7 @@ def test_defects_give_their_depth_in_percent_and_b31_8_marks_those_to_assess(tmp
     assert not any("% D" in line for line in inspection_lines(unmeasured))
 
 
+@pytest.mark.slow
 def test_joints_are_tabled_summarised_and_printed_one_line_each(tmp_path, presented):
     rows = _rows(write_joints_csv(tmp_path / "joints.csv", presented))
     columns = ["number", "kind", "axial_m", "size_mm", "uncertainty_mm", "clock_deg", "clock",
@@ -500,6 +521,7 @@ def test_joints_are_tabled_summarised_and_printed_one_line_each(tmp_path, presen
     assert any("offset at 1.000 m: 4.0 +- 0.5 mm step towards 3:00" in line for line in lines)
 
 
+@pytest.mark.slow
 def test_threshold_basis_and_the_centreline_check_are_shown(presented):
     facts = inspection_summary(presented)
     assert facts["threshold_mm"] == pytest.approx(1000 * facts["threshold"])
@@ -524,6 +546,7 @@ def test_threshold_basis_and_the_centreline_check_are_shown(presented):
     assert "the data's extent not measured" in "\n".join(inspection_lines(unknown))
 
 
+@pytest.mark.slow
 def test_colour_scale_is_pale_within_the_threshold_and_deepest_at_the_deepest_defect(presented):
     threshold, limit = colour_range(presented)
     assert threshold == presented.defects.threshold
@@ -573,6 +596,7 @@ def test_labels_go_beside_their_regions_clear_of_every_region_and_label(rng):
     assert np.all(centre - 5.0 >= bounds[:2]) and np.all(centre + 5.0 <= bounds[2:])
 
 
+@pytest.mark.slow
 def test_deviation_map_draws_with_joints_stretches_and_labels_and_without(presented):
     from io import BytesIO
 
@@ -609,6 +633,7 @@ def jointed_run():
     return found
 
 
+@pytest.mark.slow
 def test_joints_are_found_where_and_as_big_as_they_are(jointed_run):
     sample, inspection = jointed_run["jointed"]
     truth = sample.truth_record["joints"]
@@ -623,6 +648,7 @@ def test_joints_are_found_where_and_as_big_as_they_are(jointed_run):
     assert jointed_run["plain"][1].joints == ()
 
 
+@pytest.mark.slow
 def test_joints_and_ovality_are_no_defects_and_leave_the_threshold(jointed_run):
     plain, jointed = jointed_run["plain"][1], jointed_run["jointed"][1]
     assert plain.defects.defects == () and jointed.defects.defects == ()
@@ -643,6 +669,7 @@ def test_joints_and_ovality_are_no_defects_and_leave_the_threshold(jointed_run):
     ],
     ids=["bead", "gap"],
 )
+@pytest.mark.slow
 def test_a_scanned_ring_feature_is_fitted_along_the_beams(joint, stations, seed):
     path = PipePath.build([("straight", 2.5)])
     sample = scan_pipe_run(path, stations=stations, rotation_step=4.0, joints=(joint,), rng=seed)
@@ -672,6 +699,7 @@ def bent_run():
     return sample, inspection
 
 
+@pytest.mark.slow
 def test_the_centreline_follows_bends_and_runs_the_way_the_robot_went(bent_run):
     sample, inspection = bent_run
     truth = np.array(sample.truth_record["centreline"])
@@ -753,6 +781,7 @@ def test_a_bump_is_met_along_each_beam_where_the_beam_first_reaches_it(rng):
     assert np.count_nonzero(inside) > 50  # beams that met the pocket, far flank included
 
 
+@pytest.mark.slow
 def test_a_bulge_seen_at_grazing_incidence_is_fitted_to_its_depth_within_its_error(rng):
     """Beams from afar graze a bulge's near rim, and their first hits jump to the far flank
     as the fit moves the rim: 30 scans of an 8 mm bulge 6 cm wide, each beam rising 1 in
@@ -789,6 +818,7 @@ def test_a_bulge_seen_at_grazing_incidence_is_fitted_to_its_depth_within_its_err
     assert inside >= 24
 
 
+@pytest.mark.slow
 def test_a_stretch_whose_wall_is_no_circle_is_unreliable_and_not_judged():
     sample = damaged_pipe(60_000, noise=0.002, rng=8)
     points = sample.points.copy()

@@ -55,6 +55,7 @@ CASES = [
 
 
 @pytest.mark.parametrize("shape, radius, n, noise", CASES)
+@pytest.mark.slow
 def test_surface_has_no_curvature_bias(shape, radius, n, noise):
     result = reconstruct(_sample(shape, radius, n, noise).points)
     bias, _ = _surface_errors(shape, radius, result.mesh)
@@ -63,7 +64,7 @@ def test_surface_has_no_curvature_bias(shape, radius, n, noise):
     assert topology.is_consistently_oriented(result.mesh.faces)
 
 
-@pytest.mark.slow
+@pytest.mark.sweep
 @pytest.mark.parametrize("shape", ["sphere", "pipe", "torus"])
 @pytest.mark.parametrize("radius", [0.1, 0.25, 0.6])
 @pytest.mark.parametrize("n, noise", [(5_000, 0.0), (20_000, 0.001), (80_000, 0.002)])
@@ -81,6 +82,7 @@ def test_planes_shrink_and_jets_do_not():
     assert abs(jets) < abs(planes) / 10
 
 
+@pytest.mark.slow
 def test_error_falls_as_points_are_added():
     errors, supports = [], []
     for n in (5_000, 20_000, 80_000):
@@ -105,6 +107,7 @@ def _rippled_points():
     return np.column_stack([xy, _ripple(*xy.T)]) + 0.0005 * rng.normal(size=(40_000, 3))
 
 
+@pytest.mark.slow
 def test_supports_shrink_to_follow_detail(monkeypatch):
     # The ripples are about 3.6 rho+delta long: the curvature rule alone picks a support
     # that flattens them. Detail measured at two pilot supports shrinks it, and the

@@ -107,6 +107,7 @@ COMPARISONS = [
     "kernel, ref, build", COMPARISONS, ids=lambda f: getattr(f, "__name__", "")
 )
 @pytest.mark.parametrize("seed", [0, 1, 2])
+@pytest.mark.slow
 def test_kernel_matches_reference(kernel, ref, build, seed):
     inputs = build(np.random.default_rng(seed))
     got, expected = kernel(*inputs), ref(*inputs)

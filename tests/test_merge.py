@@ -163,6 +163,7 @@ BUNNY = Path(__file__).resolve().parents[2] / "shared" / "data" / "stanford_bunn
 
 
 @pytest.mark.skipif(not BUNNY.is_dir(), reason="the shared Stanford bunny scans are not here")
+@pytest.mark.slow
 def test_stanford_bunny_scans_with_their_poses_match_the_reference(tmp_path):
     # Ten Cyberware range scans with bun.conf; the scanner looks along -z of each scan
     # frame, so its position there is given as 0,0,1 (a metre up the z axis).

@@ -62,6 +62,7 @@ def _smooth_field(seed, size, undefined):
     ramp=st.booleans(),
     largest=st.integers(0, MAX_LEVEL),
 )
+@pytest.mark.slow
 def test_merged_cells_keep_a_manifold_oriented_crack_free_mesh(
     seed, size, undefined, smooth, ramp, largest
 ):
@@ -183,6 +184,7 @@ def test_cell_sizes_follow_the_spacing_and_grow_only_where_the_sag_allows():
     ],
     ids=["sphere", "torus"],
 )
+@pytest.mark.slow
 def test_method_of_cubes_vertices_lie_on_the_true_surface(sample, distance, euler):
     # Noise 2 mm on a sphere of radius 1 m and a torus of radii 1 m and 0.35 m: every
     # vertex lies within 2 mm (one noise sigma) of the analytic surface, with no bias

@@ -111,6 +111,7 @@ def test_fit_lowers_the_energy_and_pulls_the_mesh_onto_the_points(rng):
 # --------------------------------------------------------------------------- single moves
 
 
+@pytest.mark.slow
 def test_collapse_is_refused_where_the_link_condition_fails(rng):
     # Ring edge (0, 1) of the tube: vertex 2 neighbours both ends but no face holds all three.
     state = _state(_prism_tube(), rng)
@@ -134,6 +135,7 @@ def test_a_legal_collapse_keeps_the_mesh_valid(rng):
     _check_valid(after, loops=1, euler=1)
 
 
+@pytest.mark.slow
 def test_swap_is_refused_on_a_boundary_edge_and_made_on_an_interior_one(rng):
     state = _state(_grid(2), rng)
     assert state.try_swap(0, 1, force=True) is MoveOutcome.ILLEGAL_TOPOLOGY
@@ -155,6 +157,7 @@ def test_swap_onto_an_existing_edge_is_refused(rng):
 @pytest.mark.parametrize(
     "make, loops, euler", [(_grid, 1, 1), (_octahedron, 0, 2), (_hexagonal_tube, 2, 0)]
 )
+@pytest.mark.slow
 def test_splitting_every_edge_keeps_the_mesh_valid(make, loops, euler, rng):
     mesh = make()
     edges = topology.edge_face_counts(mesh.faces)[0]
@@ -214,6 +217,7 @@ MOVE_NAMES = ("try_collapse", "try_split", "try_swap")
         max_size=25,
     )
 )
+@pytest.mark.slow
 def test_any_move_sequence_keeps_a_valid_mesh_and_exact_energy_bookkeeping(small_sphere, moves):
     points, mesh = small_sphere
     projection = project(points, mesh.vertices, mesh.faces)
@@ -244,6 +248,7 @@ def test_any_move_sequence_keeps_a_valid_mesh_and_exact_energy_bookkeeping(small
 # --------------------------------------------------------------------------- optimisation
 
 
+@pytest.mark.slow
 def test_energy_never_increases(cylinder):
     _, _, result = cylinder
     totals = np.array([entry["total"] for entry in result.history])
@@ -252,6 +257,7 @@ def test_energy_never_increases(cylinder):
     assert result.energy.total < result.energy_before.total
 
 
+@pytest.mark.slow
 def test_open_cylinder_gets_five_times_fewer_triangles_and_stays_as_close(cylinder):
     sample, start, result = cylinder
     mesh = result.mesh
@@ -265,6 +271,7 @@ def test_open_cylinder_gets_five_times_fewer_triangles_and_stays_as_close(cylind
     assert np.all(_fold_cosines(mesh) > 0.0)  # no neighbouring faces opposed
 
 
+@pytest.mark.slow
 def test_the_run_reports_moves_parameters_and_energy_terms(cylinder):
     _, start, result = cylinder
     assert set(result.moves) == {"collapse", "split", "swap"}
@@ -289,6 +296,7 @@ def test_closed_sphere_stays_closed_with_the_same_genus():
     assert np.abs(sample.distance(mesh.vertices)).max() < 0.05
 
 
+@pytest.mark.slow
 def test_same_seed_same_mesh(cylinder):
     sample, start, result = cylinder
     again = optimize(start, sample.points, rng=0).mesh
@@ -296,6 +304,7 @@ def test_same_seed_same_mesh(cylinder):
     np.testing.assert_array_equal(again.vertices, result.mesh.vertices)
 
 
+@pytest.mark.slow
 def test_optimisation_is_scale_free(cylinder):
     # The same cloud in other units gives the same mesh, scaled. A power of two changes no
     # rounding, so the result must be the same bit for bit; other factors round differently,
@@ -336,6 +345,7 @@ def pipe_state():
     return sample.points, start
 
 
+@pytest.mark.slow
 def test_moves_of_one_slab_touch_nothing_of_the_other(pipe_state):
     # The safety of the threads: a pass over label 0 alone leaves every vertex of label 1
     # where it was, every face with a corner of label 1 as it was, and the points on
@@ -366,6 +376,7 @@ def test_moves_of_one_slab_touch_nothing_of_the_other(pipe_state):
     assert topology.is_consistently_oriented(mesh.faces)
 
 
+@pytest.mark.slow
 def test_one_thread_and_two_give_the_same_mesh(pipe_state):
     points, start = pipe_state
     threads = numba.get_num_threads()
@@ -383,6 +394,7 @@ def test_one_thread_and_two_give_the_same_mesh(pipe_state):
     np.testing.assert_array_equal(alone.vertices, together.vertices)
 
 
+@pytest.mark.slow
 def test_the_default_vertex_cost_does_not_depend_on_the_starting_resolution(cylinder):
     # The same surface, its every triangle split in four: the vertex cost stays (it was
     # the points per starting vertex times sigma^2, four times smaller here), and the

@@ -224,6 +224,7 @@ def test_scan_lines_far_apart_reconstruct_in_one_piece():
 
 
 @pytest.mark.parametrize("name, loops, euler", [("pipe", 2, 0), ("sphere", 0, 2), ("torus", 0, 0)])
+@pytest.mark.slow
 def test_method_of_cubes_keeps_topology_and_accuracy_with_better_triangles(
     name, loops, euler, request
 ):
@@ -250,6 +251,7 @@ def test_method_of_cubes_keeps_topology_and_accuracy_with_better_triangles(
     assert mesh.n_faces <= marching.mesh.n_faces + 2 * euler
 
 
+@pytest.mark.slow
 def test_wrong_sensor_positions_are_not_trusted():
     # Every "sensor" at the centre of a torus, in its hole: the outer half of the tube faces
     # away from it. The sensors are not trusted, a warning says so, and the mesh is the one

@@ -279,11 +279,12 @@ def check_rigid_motion(shape: Shape, rotation, translation, contour: str) -> Non
 
 @settings(max_examples=16, deadline=None)
 @given(shape=shapes(), rotation=rotations(), translation=translations, contour=CONTOURS)
+@pytest.mark.slow
 def test_rigid_motion_moves_the_mesh_with_the_points(shape, rotation, translation, contour):
     check_rigid_motion(shape, rotation, translation, contour)
 
 
-@pytest.mark.slow
+@pytest.mark.sweep
 @settings(max_examples=40, deadline=None)
 @given(shape=shapes(n=LARGE), rotation=rotations(), translation=translations, contour=CONTOURS)
 def test_rigid_motion_moves_the_mesh_with_the_points_of_large_clouds(
@@ -299,6 +300,7 @@ def test_rigid_motion_moves_the_mesh_with_the_points_of_large_clouds(
     translation=exact_translations,
     contour=CONTOURS,
 )
+@pytest.mark.slow
 def test_quarter_turns_keep_the_lattice_and_the_vertices(shape, rotation, translation, contour):
     # Clouds of at most WIDE_ROWS points: the parameters are measured on every point.
     # No edge split and rims of whole cubes: whether an edge sags past the tolerance, or
@@ -343,11 +345,12 @@ def check_exact_translation(shape: Shape, translation, contour: str) -> None:
 
 @settings(max_examples=8, deadline=None)
 @given(shape=shapes(), translation=exact_translations, contour=CONTOURS)
+@pytest.mark.slow
 def test_exact_translations_give_the_same_mesh_translated(shape, translation, contour):
     check_exact_translation(shape, translation, contour)
 
 
-@pytest.mark.slow
+@pytest.mark.sweep
 @settings(max_examples=20, deadline=None)
 @given(shape=shapes(n=LARGE), translation=exact_translations, contour=CONTOURS)
 def test_exact_translations_give_the_same_mesh_translated_for_large_clouds(
@@ -358,6 +361,7 @@ def test_exact_translations_give_the_same_mesh_translated_for_large_clouds(
 
 @settings(max_examples=8, deadline=None)
 @given(shape=shapes(), translation=translations, contour=CONTOURS)
+@pytest.mark.slow
 def test_translations_move_the_mesh_up_to_rounding(shape, translation, contour):
     sample = shape.sample()
     before = reconstruct(sample.points, contour=contour)
@@ -381,11 +385,12 @@ def check_power_of_two(shape: Shape, power: int, contour: str) -> None:
 
 @settings(max_examples=8, deadline=None)
 @given(shape=shapes(), power=st.integers(-10, 10), contour=CONTOURS)
+@pytest.mark.slow
 def test_scaling_by_a_power_of_two_is_exact(shape, power, contour):
     check_power_of_two(shape, power, contour)
 
 
-@pytest.mark.slow
+@pytest.mark.sweep
 @settings(max_examples=20, deadline=None)
 @given(shape=shapes(n=LARGE), power=st.integers(-10, 10), contour=CONTOURS)
 def test_scaling_large_clouds_by_a_power_of_two_is_exact(shape, power, contour):
@@ -394,6 +399,7 @@ def test_scaling_large_clouds_by_a_power_of_two_is_exact(shape, power, contour):
 
 @settings(max_examples=8, deadline=None)
 @given(shape=shapes(), scale=st.floats(1e-3, 1e3), contour=CONTOURS)
+@pytest.mark.slow
 def test_scaling_scales_the_mesh_up_to_rounding(shape, scale, contour):
     points = shape.sample().points
     before = reconstruct(points, contour=contour)
@@ -417,11 +423,12 @@ def check_point_order(shape: Shape, permutation_seed: int, contour: str) -> None
 
 @settings(max_examples=8, deadline=None)
 @given(shape=shapes(), permutation_seed=st.integers(0, 2**32 - 1), contour=CONTOURS)
+@pytest.mark.slow
 def test_point_order_does_not_matter(shape, permutation_seed, contour):
     check_point_order(shape, permutation_seed, contour)
 
 
-@pytest.mark.slow
+@pytest.mark.sweep
 @settings(max_examples=20, deadline=None)
 @given(shape=shapes(n=LARGE), permutation_seed=st.integers(0, 2**32 - 1), contour=CONTOURS)
 def test_point_order_does_not_matter_for_large_clouds(shape, permutation_seed, contour):
@@ -474,11 +481,12 @@ def check_meshes(shape: Shape, rotation, translation) -> None:
 
 @settings(max_examples=16, deadline=None)
 @given(shape=shapes(), rotation=rotations(), translation=translations)
+@pytest.mark.slow
 def test_meshes_are_manifold_oriented_and_on_the_surface(shape, rotation, translation):
     check_meshes(shape, rotation, translation)
 
 
-@pytest.mark.slow
+@pytest.mark.sweep
 @settings(max_examples=40, deadline=None)
 @given(shape=shapes(n=LARGE), rotation=rotations(), translation=translations)
 def test_meshes_of_large_clouds_are_manifold_oriented_and_on_the_surface(

@@ -104,6 +104,7 @@ def test_data_edge_counts_a_curve_of_points_as_no_surface():
 
 
 @pytest.mark.parametrize("n", [20_000, 80_000])
+@pytest.mark.slow
 def test_open_pipe_rim_lies_at_the_data_edge_without_steps(n):
     radius, length, noise = 0.25, 1.0, 0.002
     sample = sample_cylinder(n, radius=radius, length=length, noise=noise, rng=1)
@@ -277,6 +278,7 @@ def test_rim_of_whole_cubes_is_hoppes_and_is_not_cut():
     assert cubes.mesh.vertices[:, 2].max() > 1.0 + reach >= data.mesh.vertices[:, 2].max()
 
 
+@pytest.mark.slow
 def test_without_gap_bridges_the_far_ends_of_a_scan_tear():
     # Far down a 0.1 m pipe the scan rings are 2-2.5 rho+delta apart: bridges join them.
     scan = scan_pipe(radius=0.1, rotation_step=1.0, offset=0.0, rng=3)

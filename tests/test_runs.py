@@ -138,6 +138,7 @@ def test_nearest_recovers_the_arc_length_of_points_around_the_centreline():
     assert found[0] == pytest.approx(path.length) and overshoot[0] == pytest.approx(0.2)
 
 
+@pytest.mark.slow
 def test_scanned_points_lie_on_the_true_wall_and_beams_stop_at_the_first_hit(scan):
     assert scan.points.shape[0] > 20_000
     assert scan.distance(scan.points).max() < 1e-9
@@ -161,6 +162,7 @@ def test_scanned_points_lie_on_the_true_wall_and_beams_stop_at_the_first_hit(sca
     assert bore.gap(start[beam] + f[:, None] * (end - start)[beam])[0].max() < 0.0
 
 
+@pytest.mark.slow
 def test_viewpoints_circle_the_true_centreline_in_the_stations_cross_sections(scan):
     record = scan.truth_record
     line = np.array(record["centreline"])
@@ -223,6 +225,7 @@ def test_joints_change_the_radius_where_and_as_much_as_they_should():
     )
 
 
+@pytest.mark.slow
 def test_a_tees_branch_is_open_to_the_run_and_its_points_lie_on_its_wall(scan):
     tee = DAMAGE["tees"][0]
     record = scan.truth_record["tees"][0]
@@ -254,6 +257,7 @@ def test_a_tees_branch_is_open_to_the_run_and_its_points_lie_on_its_wall(scan):
     assert run.distance(mesh.vertices).max() < 1e-9
 
 
+@pytest.mark.slow
 def test_the_truth_record_describes_the_run(scan, tmp_path):
     record = scan.truth_record
     json.dumps(record)

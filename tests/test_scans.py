@@ -42,11 +42,12 @@ def _check_scan(radius, step, offset, seed, use_viewpoints):
 
 
 @pytest.mark.parametrize("radius, step, offset, seed", CASES)
+@pytest.mark.slow
 def test_scan_reconstructs_in_one_piece_with_two_boundary_loops(radius, step, offset, seed):
     _check_scan(radius, step, offset, seed, use_viewpoints=False)
 
 
-@pytest.mark.slow
+@pytest.mark.sweep
 @pytest.mark.parametrize("radius, step, offset, seed", SLOW_CASES)
 @pytest.mark.parametrize("use_viewpoints", [False, True])
 def test_scan_sweep(radius, step, offset, seed, use_viewpoints):

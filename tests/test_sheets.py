@@ -30,6 +30,7 @@ def _pieces(mesh) -> int:
 
 
 @pytest.mark.parametrize("fit_support", [None, 0.026, 0.078])
+@pytest.mark.slow
 def test_two_plates_three_rho_delta_apart_stay_two_plates(fit_support):
     gap = 0.04
     points = _plates(gap)
@@ -47,6 +48,7 @@ def test_two_plates_three_rho_delta_apart_stay_two_plates(fit_support):
     assert np.quantile(points_to_mesh_distance(walls, mesh), 0.99) < 0.003  # metres
 
 
+@pytest.mark.slow
 def test_two_pipes_one_inside_the_other_stay_two_pipes():
     inner, outer = 0.31, 0.35
     result = reconstruct(_concentric(inner, outer), progress=False)
@@ -92,6 +94,7 @@ def pipe_rack(n, seed):
     return np.vstack(pipes)
 
 
+@pytest.mark.slow
 def test_pipes_side_by_side_all_face_outward():
     # From the far side of a pipe, the nearest point of the pipe beside it lies beyond the
     # pipe's own near side; only the facing sides may vote on how the two are oriented (2

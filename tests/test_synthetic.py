@@ -136,7 +136,7 @@ def test_points_and_the_default_truth_mesh_lie_on_the_surface(name):
     assert np.median(np.linalg.norm(edges, axis=1)) < diagonal / 150
 
 
-@pytest.mark.slow
+@pytest.mark.sweep
 @pytest.mark.parametrize("name", NAMES)
 def test_points_lie_on_the_default_truth_mesh(name):
     sample = _make(name)
@@ -564,6 +564,7 @@ def _in_patch(s, clock, defect):
     return d < 0.5 * defect.width
 
 
+@pytest.mark.slow
 def test_damaged_elbow_scan_returns_the_first_wall_point_along_each_beam():
     stations = [0.2, LEG + 0.25 * np.pi * BEND, LEG + 0.5 * np.pi * BEND, ELBOW_LENGTH]
     scan = scan_damaged_pipe(

@@ -73,6 +73,7 @@ def _sheet_with_a_sparse_strip(n, seed):
     ],
     ids=["torus", "torus-2", "tee", "tee-2", "sheet", "sparse-scan-2", "sparse-scan-3", "rack"],
 )
+@pytest.mark.slow
 def test_tiled_mesh_is_the_untiled_mesh(client, points, tiles, closed):
     # With default options: the tiles take the parameters reconstruct chooses.
     untiled = reconstruct(points)
@@ -143,6 +144,7 @@ def test_tiles_that_orient_oppositely_are_flipped_to_agree():
     assert disagreement == pytest.approx(1 / 5) and groups == 1
 
 
+@pytest.mark.slow
 def test_cli_tiles_from_a_file_on_a_scheduler(client, tmp_path, capsys):
     path = io.write_points(tmp_path / "torus.ply", sample_torus(30_000, noise=0.005, rng=5).points)
     out, report = tmp_path / "mesh.ply", tmp_path / "r.json"
@@ -177,6 +179,7 @@ def test_tile_options_are_checked_before_any_cluster_starts(tmp_path, capsys, ex
     assert error.count("\n") == 1  # one line: no cluster was started to fail in a task
 
 
+@pytest.mark.slow
 def test_tiles_read_from_a_file_with_a_crop_give_the_untiled_mesh(client, tmp_path):
     # Each tile reads its own box of the file, cut by the crop.
     points = sample_torus(30_000, noise=0.005, rng=6).points
@@ -198,6 +201,7 @@ def _torus_and_scatter():
     return np.vstack([sample_torus(30_000, noise=0.003, rng=5).points, scatter])
 
 
+@pytest.mark.slow
 def test_a_failed_tile_stops_the_run_unless_gaps_are_allowed(client, tmp_path, capsys):
     points = _torus_and_scatter()
     with pytest.raises(ReconstructionError, match=r"tile \(1, 0, 0\) of 2x1x1: only"):
@@ -218,6 +222,7 @@ def test_a_failed_tile_stops_the_run_unless_gaps_are_allowed(client, tmp_path, c
     )
 
 
+@pytest.mark.slow
 def test_tiles_oriented_towards_a_sensor_agree_with_the_untiled_run(client):
     # One sensor at the sphere's centre: the normals point inward, in every tile.
     points = sample_sphere(20_000, noise=0.003, rng=6).points
@@ -234,6 +239,7 @@ def test_tiles_oriented_towards_a_sensor_agree_with_the_untiled_run(client):
     assert tiled.stats["viewpoints_untrusted"] == 0 and tiled.stats["orientation_components"] == 1
 
 
+@pytest.mark.slow
 def test_tiles_whose_neighbourhoods_reach_further_widen_their_halos(client):
     points = _sheet_with_a_sparse_strip(40_000, 0)
     untiled = reconstruct(points)
@@ -244,6 +250,7 @@ def test_tiles_whose_neighbourhoods_reach_further_widen_their_halos(client):
 
 
 @pytest.mark.parametrize("from_file", [False, True], ids=["array", "file"])
+@pytest.mark.slow
 def test_a_cloud_too_large_to_hold_gets_the_parameters_of_all_its_points(tmp_path, from_file):
     # Measured at 20,000 points drawn in one pass, on the points near them read in another.
     points = sample_torus(300_000, noise=0.003, rng=7).points
