@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 
 from zeroset.normals import tangent_planes
-from zeroset.orientation import orient_normals
+from zeroset.orientation import agree_parts, orient_normals, part_extremes
 from zeroset.synthetic import sample_cylinder, sample_sphere, two_spheres
 
 
@@ -167,3 +167,66 @@ def test_a_part_is_joined_by_a_step_within_30_degrees_of_both_tangent_planes(til
     normals = np.tile([np.sin(angle), 0.0, np.cos(angle)], (centroids.shape[0], 1))
     edges = _bridges(centroids, normals, component, np.full(centroids.shape[0], 0.1))
     assert (edges.nnz == 1) == joined
+
+
+def _overlaps(*parts):
+    """The arguments of `agree_parts` for parts given as (points, normals, extremes (6, 2))
+    of one component each."""
+    keys = np.concatenate([np.array(p, dtype=np.float64) for p, _, _ in parts])
+    return (
+        np.ascontiguousarray(keys).view(np.dtype((np.void, 24))).ravel(),
+        np.concatenate([np.full(len(p), i) for i, (p, _, _) in enumerate(parts)]),
+        np.concatenate([np.array(n, dtype=np.float64) for _, n, _ in parts]),
+        np.stack([np.array(e, dtype=np.float64) for _, _, e in parts]),
+    )
+
+
+def test_parts_that_orient_oppositely_are_turned_to_agree():
+    # Two parts share three points; the second oriented them the other way. The first
+    # holds the point farthest along +x, whose normal points along -x: so it turns.
+    shared = [[0.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 2.0, 0.0]]
+    up, down = [[1.0, 0.0, 0.0]] * 3, [[-1.0, 0.0, 0.0]] * 3
+    far = np.full((6, 2), -np.inf)
+    far[0] = [5.0, -1.0]  # +x: coordinate 5, normal against +x
+    near = np.full((6, 2), -np.inf)
+    near[0] = [1.0, 1.0]
+    sign, group, disagreement = agree_parts(*_overlaps((shared, up, far), (shared, down, near)))
+    assert sign.tolist() == [-1.0, 1.0] and group[0] == group[1] and disagreement == 0.0
+    # Three parts whose pairs cannot all agree (0 and 1 disagree, 1 and 2 agree, 2 and 0
+    # agree): one pair is left disagreeing, and reported, not hidden.
+    b, c = [[7.0, 0.0, 0.0]], [[8.0, 0.0, 0.0]]
+    x = [[1.0, 0.0, 0.0]]
+    parts = [(shared + c, up + x, far), (shared + b, down + x, near), (b + c, x * 2, near)]
+    _, group, disagreement = agree_parts(*_overlaps(*parts))
+    assert disagreement == pytest.approx(1 / 5) and np.unique(group).size == 1
+    # Sensors that set every sign keep them.
+    sign, _, disagreement = agree_parts(*_overlaps(*parts), by_sensors=True)
+    assert sign.tolist() == [1.0, 1.0, 1.0] and disagreement == pytest.approx(3 / 5)
+
+
+def test_halves_of_a_sphere_oriented_apart_agree_outward(rng):
+    # Each half, with an overlap, oriented on its own after one half is turned inward:
+    # agreeing on the overlap and rooting at the extreme point turns every normal outward.
+    points = sample_sphere(4000, noise=0.005, rng=3).points
+    planes = tangent_planes(points, radius=0.2)
+    keys, part, normals, extremes = [], [], [], []
+    for i, side in enumerate((planes.centroids[:, 0] < 0.2, planes.centroids[:, 0] > -0.2)):
+        own = orient_normals(planes.centroids[side], _random_signs(planes.normals[side], rng))
+        turned = own.normals * (-1.0 if i else 1.0)
+        keys.append(np.ascontiguousarray(planes.centroids[side]).view(np.dtype((np.void, 24))))
+        part.append(np.full(np.count_nonzero(side), i))
+        normals.append(turned)
+        owned = planes.centroids[side, 0] < 0 if i == 0 else planes.centroids[side, 0] >= 0
+        extremes.append(
+            part_extremes(planes.centroids[side][owned], turned[owned], own.component[owned], 1)
+        )
+    sign, group, disagreement = agree_parts(
+        np.concatenate(keys).ravel(),
+        np.concatenate(part),
+        np.concatenate(normals),
+        np.concatenate(extremes),
+    )
+    assert sign.tolist() == [1.0, -1.0] and group[0] == group[1] and disagreement < 0.01
+    for i, side in enumerate((planes.centroids[:, 0] < 0.2, planes.centroids[:, 0] > -0.2)):
+        outward = np.einsum("ij,ij->i", normals[i] * sign[i], planes.centroids[side])
+        assert np.mean(outward > 0) > 0.999

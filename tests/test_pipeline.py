@@ -16,7 +16,7 @@ from zeroset import (
     topology,
 )
 from zeroset.evaluate import points_to_mesh_distance
-from zeroset.pipeline import surface_changes
+from zeroset.stages import surface_changes
 from zeroset.synthetic import sample_cylinder, sample_sphere, sample_torus, scan_pipe
 
 

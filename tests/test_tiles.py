@@ -1,11 +1,15 @@
 """Tiled reconstruction on a dask.distributed cluster: the same mesh as without tiles."""
 
+import ast
+import importlib
 import json
+from pathlib import Path
 
 import distributed
 import numpy as np
 import pytest
 
+import zeroset.tiles
 from tests.test_sheets import pipe_rack
 from zeroset import (
     ReconstructionConfig,
@@ -17,9 +21,9 @@ from zeroset import (
 )
 from zeroset.cli import main
 from zeroset.neighbours import spatial_order
-from zeroset.pipeline import choose_parameters
+from zeroset.stages import choose_parameters
 from zeroset.synthetic import sample_sphere, sample_tee, sample_torus, scan_pipe
-from zeroset.tiles import _agree, _estimate_sampled, plan_tiles, reconstruct_tiled
+from zeroset.tiles import _estimate_sampled, plan_tiles, reconstruct_tiled
 
 
 @pytest.fixture(scope="module")
@@ -93,6 +97,25 @@ def test_tiled_mesh_is_the_untiled_mesh(client, points, tiles, closed):
     assert cuts and all(np.any(np.abs(lattice[:, a] - cut) < 1.0) for a, cut in cuts)
 
 
+def test_tiles_import_only_public_names():
+    # The tiles run the stages of zeroset.stages, as reconstruct does, through their
+    # public names: each name they import from the package is in its module's __all__.
+    tree = ast.parse(Path(zeroset.tiles.__file__).read_text())
+    imported = [
+        (node.module, alias.name)
+        for node in ast.walk(tree)
+        if isinstance(node, ast.ImportFrom) and node.level == 1 and node.module
+        for alias in node.names
+    ]
+    assert ("stages", "fit") in imported and ("orientation", "agree_parts") in imported
+    private = [
+        f"{module}.{name}"
+        for module, name in imported
+        if name not in importlib.import_module(f"zeroset.{module}").__all__
+    ]
+    assert private == []
+
+
 def test_every_cube_belongs_to_one_tile():
     untiled = reconstruct(sample_torus(5_000, rng=1).points)
     p = untiled.parameters
@@ -106,42 +129,6 @@ def test_every_cube_belongs_to_one_tile():
     # Each tile reads its own box and a halo around it, not the whole cloud.
     widths = np.array([t.box[3:] - t.box[:3] for t in tiles])
     assert np.all(widths[:, 0] < 3.0 / 3 + 2 * (8 * p.rho_delta + 3 * p.cube_size))
-
-
-def _seam(keys, normals, extremes):
-    points = np.array(keys, dtype=np.float64)
-    return {
-        "keys": np.ascontiguousarray(points).view(np.dtype((np.void, 24))).ravel(),
-        "normals": np.array(normals, dtype=np.float64),
-        "component": np.zeros(len(keys), dtype=np.int64),
-        "extremes": np.array(extremes, dtype=np.float64)[None],
-        "n_components": 1,
-        "sensors": False,
-    }
-
-
-def test_tiles_that_orient_oppositely_are_flipped_to_agree():
-    # Two tiles share three seam points; the second oriented them the other way. The
-    # first holds the point farthest along +x, whose normal points along -x: so both flip.
-    shared = [[0.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 2.0, 0.0]]
-    up, down = [[1.0, 0.0, 0.0]] * 3, [[-1.0, 0.0, 0.0]] * 3
-    far = np.full((6, 2), -np.inf)
-    far[0] = [5.0, -1.0]  # +x: coordinate 5, normal against +x
-    near = np.full((6, 2), -np.inf)
-    near[0] = [1.0, 1.0]
-    flips, disagreement, groups = _agree([_seam(shared, up, far), None, _seam(shared, down, near)])
-    assert flips == [{0: -1.0}, {}, {}]
-    assert disagreement == 0.0 and groups == 1
-    # Three tiles whose pairs cannot all agree (0 and 1 disagree, 1 and 2 agree, 2 and 0
-    # agree): one pair is left disagreeing, and reported, not hidden.
-    b, c = [[7.0, 0.0, 0.0]], [[8.0, 0.0, 0.0]]
-    tiles = [
-        _seam(shared + c, up + [[1.0, 0.0, 0.0]], far),
-        _seam(shared + b, down + [[1.0, 0.0, 0.0]], near),
-        _seam(b + c, [[1.0, 0.0, 0.0]] * 2, near),
-    ]
-    _, disagreement, groups = _agree(tiles)
-    assert disagreement == pytest.approx(1 / 5) and groups == 1
 
 
 @pytest.mark.slow

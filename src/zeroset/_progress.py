@@ -20,6 +20,7 @@ class Stages:
     """Time named stages; show a bar on stderr when `show` is true and stderr is a terminal.
 
     `run` also gathers what each stage counted: ``counts`` holds their sum (`add_counts`).
+    As a context manager it closes the bar on exit.
     """
 
     def __init__(self, names: tuple[str, ...], *, show: bool) -> None:
@@ -54,6 +55,12 @@ class Stages:
 
     def close(self) -> None:
         self._bar.close()
+
+    def __enter__(self) -> Stages:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
 
 
 def add_counts(total: dict, counts: dict) -> dict:

@@ -19,8 +19,13 @@ from ._kernels.normals import centroid_covariance
 from .neighbours import build_tree, off_plane, step_cosines
 
 __all__ = [
+    "BRIDGE_LENGTH",
+    "BRIDGE_REACH",
+    "BRIDGE_STEP",
+    "RADIUS_CAP",
     "SECTORS",
     "SECTORS_NEEDED",
+    "SMOOTH_K",
     "gap_bridges",
     "local_spacing",
     "point_radii",

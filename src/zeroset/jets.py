@@ -43,6 +43,7 @@ from .prepare import cell_labels, group_means
 from .types import Jets
 
 __all__ = [
+    "REACH",
     "concatenate_jets",
     "evaluate_jets",
     "fit_jets",

@@ -1,4 +1,5 @@
-"""Consistent normal orientation: MST propagation per component, or towards a sensor."""
+"""Consistent normal orientation: MST propagation per component, or towards a sensor; and
+the agreement of parts oriented on their own (tiles) where they overlap."""
 
 from __future__ import annotations
 
@@ -12,7 +13,7 @@ from .errors import InputError
 from .neighbours import build_tree, knn, off_plane, step_cosines
 from .types import VIEWPOINTS_UNTRUSTED, Neighbourhoods, Orientation
 
-__all__ = ["orient_normals"]
+__all__ = ["agree_parts", "orient_normals", "part_extremes"]
 
 #: |cosine| between a normal and the direction to its sensor from which the sensor decides
 #: the normal's sign (the beam meets the surface within 60 degrees of its normal). Nearer
@@ -180,6 +181,123 @@ def orient_normals(
         disagreement=disagreement,
         turned=turned,
     )
+
+
+def part_extremes(centroids, normals, component, n_components: int) -> np.ndarray:
+    """Each component's extreme points, as the root rule of `orient_normals` reads them.
+
+    Parameters
+    ----------
+    centroids, normals : (N, 3) float64
+        Oriented tangent planes.
+    component : (N,) int64
+        Component of each plane, below `n_components`.
+
+    Returns
+    -------
+    (C, 6, 2) float64
+        Per component and direction +x, -x, +y, -y, +z, -z: the coordinate of its centroid
+        farthest that way (`component_extremes`) and the cosine of that one's normal with
+        the direction; -inf for a component with no plane.
+    """
+    out = np.full((n_components, 6, 2), -np.inf)
+    extremes = component_extremes(centroids, component, n_components)
+    found = extremes >= 0
+    point, direction = extremes[found], DIRECTIONS[np.nonzero(found)[1]]
+    out[found, 0] = np.einsum("ik,ik->i", centroids[point], direction)
+    out[found, 1] = np.einsum("ik,ik->i", normals[point], direction)
+    return out
+
+
+def agree_parts(keys, part, normals, extremes, *, by_sensors: bool = False):
+    """Signs that make parts oriented on their own agree, as `orient_normals` would have
+    oriented their union.
+
+    Each part (a tile's component) is a node; two parts that hold the same points are
+    joined, agreeing where most of those points' normals point alike. A spanning forest,
+    largest majorities first, fixes each part's sign relative to its group; each group then
+    takes the sign of its most extreme point along one of +-x, +-y, +-z (`root_rule`),
+    unless the sensors have set every part's sign (`by_sensors`).
+
+    Parameters
+    ----------
+    keys : (M,) array
+        Identity of each overlap point: a point two parts hold appears twice, with equal
+        keys.
+    part : (M,) int64
+        Part holding each, below P.
+    normals : (M, 3) float64
+        Its normal as its part oriented it.
+    extremes : (P, 6, 2) float64
+        `part_extremes` of each part (-inf rows for a part with no points of its own).
+
+    Returns
+    -------
+    sign : (P,) float64
+        +1 or -1 per part.
+    group : (P,) int64
+        Label of the group of parts joined through overlaps.
+    disagreement : float or None
+        Share of the overlap pairs whose normals still point apart; None without overlap.
+    """
+    order = np.argsort(keys, kind="stable")
+    same = keys[order][1:] == keys[order][:-1]
+    a, b = order[:-1][same], order[1:][same]
+    a, b = a[part[a] != part[b]], b[part[a] != part[b]]
+    alike = np.einsum("ij,ij->i", normals[a], normals[b]) >= 0.0
+    sign, group = _spanning_signs(part[a], part[b], alike, extremes.shape[0])
+    if by_sensors:
+        sign[:] = 1.0
+    else:
+        _root_signs(extremes, sign, group)
+    disagreement = None
+    if a.size:
+        disagreement = float(np.mean((sign[part[a]] * sign[part[b]] > 0) != alike))
+    return sign, group, disagreement
+
+
+def _spanning_signs(u, v, alike, n_parts: int) -> tuple[np.ndarray, np.ndarray]:
+    """Sign (P,) and group (P,) of each part from matched points (u, v, alike), the pairs
+    of parts with the largest majorities first (Kruskal's order), by a union-find with
+    parity."""
+    parent, parity = np.arange(n_parts), np.zeros(n_parts, dtype=np.int64)
+
+    def find(x):
+        flip = 0
+        while parent[x] != x:
+            flip ^= parity[x]
+            x = parent[x]
+        return x, flip
+
+    pairs, inverse = np.unique(
+        np.sort(np.stack([u, v], axis=1), axis=1), axis=0, return_inverse=True
+    )
+    votes = np.bincount(inverse.ravel(), weights=np.where(alike, 1.0, -1.0), minlength=len(pairs))
+    for (p, q), vote in sorted(
+        zip(pairs.tolist(), votes.tolist(), strict=True), key=lambda e: -abs(e[1])
+    ):
+        (rp, fp), (rq, fq) = find(p), find(q)
+        if rp != rq:
+            parent[rq], parity[rq] = rp, fp ^ fq ^ (0 if vote >= 0 else 1)
+    sign, group = np.ones(n_parts), np.arange(n_parts)
+    for x in range(n_parts):
+        root, flip = find(x)
+        group[x], sign[x] = root, -1.0 if flip else 1.0
+    return sign, group
+
+
+def _root_signs(extremes, sign, group) -> None:
+    """Turn each group so that its most extreme point's normal points outward."""
+    for g in np.unique(group):
+        members = np.flatnonzero(group == g)
+        coordinate = extremes[members, :, 0]
+        best = np.argmax(coordinate, axis=0)  # per direction, the member farthest that way
+        found = np.isfinite(coordinate[best, np.arange(6)])
+        if not found.any():
+            continue
+        alignment = np.where(found, extremes[members[best], np.arange(6), 1], 0.0)
+        _, turn = root_rule((alignment * sign[members[best]])[None])
+        sign[members] *= turn[0]
 
 
 def _unstack(centroids, normals, component, reach) -> np.ndarray:

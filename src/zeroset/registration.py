@@ -462,8 +462,8 @@ def _align_rounds(
     ]
     corrections = [np.eye(4) for _ in clouds]
     steps = [(r, position) for r in range(len(schedule)) for position in range(len(order))]
-    stages = Stages(tuple(f"register {r + 1}/{len(schedule)}" for r, _ in steps), show=progress)
-    try:
+    labels = tuple(f"register {r + 1}/{len(schedule)}" for r, _ in steps)
+    with Stages(labels, show=progress) as stages:
         for round_, position in steps:
             i = order[position]
             if round_ == 0:
@@ -481,8 +481,6 @@ def _align_rounds(
                     tolerance=TRANSLATION_EPSILON * float(schedule[-1]),
                     threads=threads,
                 )
-    finally:
-        stages.close()
     return corrections
 
 

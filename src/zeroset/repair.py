@@ -61,7 +61,7 @@ def split_nonmanifold_vertices(mesh: Mesh) -> tuple[Mesh, int]:
     return Mesh(vertices=vertices, faces=new_faces), int(added)
 
 
-#: Most edges of a loop that the rim cut may close (`zeroset.pipeline.trim_rim`).
+#: Most edges of a loop that the rim cut may close (`zeroset.stages.trim_rim`).
 WIDTH_EDGES = 128
 #: Fractions of the way from a loop's centroid to each of its vertices and edge midpoints
 #: at which `fan_samples` samples the fan over it.

@@ -20,7 +20,6 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ._extras import require
-from ._kernels.orientation import component_extremes
 from ._lattice import LIMIT
 from ._progress import Stages, add_counts, peak_mib
 from ._validate import as_points
@@ -30,10 +29,13 @@ from .density import RADIUS_CAP
 from .errors import InputError, ReconstructionError, SurfaceWarning
 from .jets import REACH, concatenate_jets, select_jets
 from .neighbours import build_tree, spatial_order
-from .orientation import DIRECTIONS, root_rule
+from .orientation import agree_parts, part_extremes
 from .parameters import neighbours_read
-from .pipeline import (
+from .prepare import CHUNK_POINTS
+from .prepare import crop as inside
+from .stages import (
     DataSupport,
+    FittedPlanes,
     LocalCloud,
     choose_parameters,
     data_support,
@@ -45,8 +47,6 @@ from .pipeline import (
     mesh_stats,
     warn_surface_changes,
 )
-from .prepare import CHUNK_POINTS
-from .prepare import crop as inside
 from .topology import is_consistently_oriented, is_edge_manifold
 from .types import Jets, Mesh, Parameters
 
@@ -118,6 +118,105 @@ class Tile:
         """The same tile with a halo of `halo`."""
         wider = halo - self.halo
         return replace(self, box=np.r_[self.box[:3] - wider, self.box[3:] + wider], halo=halo)
+
+
+@dataclass(frozen=True, eq=False)
+class TileFit:
+    """A tile's points and oriented planes (`_fit_tile`'s result, kept on its worker)."""
+
+    tile: Tile
+    cloud: LocalCloud
+    fitted: FittedPlanes
+    counts: dict
+
+
+@dataclass(frozen=True, eq=False)
+class TileFailure:
+    """A tile whose fit failed, and why."""
+
+    tile: Tile
+    reason: str
+
+
+@dataclass(frozen=True, eq=False)
+class Seam:
+    """What a tile tells the others of its orientation (`_seam`).
+
+    Attributes
+    ----------
+    keys : (S,) void
+        Its points within the seam band, by their exact coordinates (`_point_keys`).
+    normals : (S, 3) float64
+        Their oriented normals.
+    component : (S,) int64
+        Their orientation components.
+    extremes : (C, 6, 2) float64
+        `zeroset.orientation.part_extremes` of its components, from the points it owns.
+    by_sensors : bool
+        Whether the sensors set its signs.
+    """
+
+    keys: np.ndarray
+    normals: np.ndarray
+    component: np.ndarray
+    extremes: np.ndarray
+    by_sensors: bool
+
+
+@dataclass(frozen=True, eq=False)
+class Piece:
+    """A tile's part of the mesh (`_contour_tile`), in the local frame.
+
+    Attributes
+    ----------
+    edge_keys : (V,) int64
+        Global key of the lattice edge each vertex lies on.
+    vertices : (V, 3) float64
+    faces : (F, 3) int64
+    cube_keys : (F,) int64
+        Global key of the cube of each face.
+    support : DataSupport
+        The data support of the points in its cubes.
+    jets : Jets or None
+        The oriented jets centred in its cubes.
+    counts : dict
+        Its stages' counts.
+    peak_mib : float or None
+        Its worker's peak resident memory, None where the platform does not say.
+    worker : str
+        Its worker's address.
+    """
+
+    edge_keys: np.ndarray
+    vertices: np.ndarray
+    faces: np.ndarray
+    cube_keys: np.ndarray
+    support: DataSupport
+    jets: Jets | None
+    counts: dict
+    peak_mib: float | None
+    worker: str
+
+    @staticmethod
+    def empty(peak_mib: float | None, worker: str) -> Piece:
+        """The piece of a tile with no surface."""
+        return Piece(
+            edge_keys=np.zeros(0, dtype=np.int64),
+            vertices=np.zeros((0, 3)),
+            faces=np.zeros((0, 3), dtype=np.int64),
+            cube_keys=np.zeros(0, dtype=np.int64),
+            support=DataSupport(
+                points=np.zeros((0, 3)),
+                radii=np.zeros(0),
+                reach=np.zeros(0),
+                measured=np.zeros(0, bool),
+                planes=np.zeros((0, 3)),
+            ),
+            jets=None,
+            counts={},
+            peak_mib=peak_mib,
+            worker=worker,
+        )
 
 
 @dataclass(frozen=True, eq=False)
@@ -312,9 +411,9 @@ def reconstruct_tiled(
         progress,
     )
     failed = [
-        f"tile {seam['tile']} of {'x'.join(map(str, counts))}: {seam['failed']}"
+        f"tile {seam.tile.index} of {'x'.join(map(str, counts))}: {seam.reason}"
         for seam in seams
-        if seam is not None and "failed" in seam
+        if isinstance(seam, TileFailure)
     ]
     if failed and not allow_gaps:
         raise ReconstructionError(
@@ -337,7 +436,7 @@ def reconstruct_tiled(
     start = time.perf_counter()
     stats = {"input_points": n_points, "tiles": len(plan), "tiles_failed": len(failed)}
     for piece in pieces:
-        add_counts(stats, piece["counts"])
+        add_counts(stats, piece.counts)
     stats["orientation_components"] = groups
     stats["seam_disagreement"] = disagreement
     stats["tile_grid"] = [int(c) for c in counts]
@@ -359,17 +458,17 @@ def reconstruct_tiled(
     timings["weld"] = time.perf_counter() - start
     jets = _owned_jets(pieces)
     stages = Stages((), show=False)
-    support = DataSupport.concatenate([piece["support"] for piece in pieces])
+    support = DataSupport.concatenate([piece.support for piece in pieces])
     mesh = finish(mesh, support, jets, parameters, config, stages)
     timings.update(stages.timings)
     add_counts(stats, stages.counts)
-    mesh = Mesh(vertices=mesh.vertices + offset, faces=mesh.faces)
+    mesh = mesh.translated(offset)
     stats.update(jet_stats(jets) | mesh_stats(mesh))
     warn_surface_changes(stats, config)
     peaks: dict = {}
     for piece in pieces:
-        if piece["peak_mib"] is not None:  # None where the platform does not say
-            peaks[piece["worker"]] = max(peaks.get(piece["worker"], 0.0), piece["peak_mib"])
+        if piece.peak_mib is not None:  # None where the platform does not say
+            peaks[piece.worker] = max(peaks.get(piece.worker, 0.0), piece.peak_mib)
     stats["worker_peak_mib"] = peaks
     return TiledReconstruction(
         mesh=mesh,
@@ -490,7 +589,7 @@ def _chunks(source, crop, chunk_points=CHUNK_POINTS):
     yield from io.point_chunks(source, crop=crop, chunk_points=chunk_points)
 
 
-def _fit_tile(source, tile: Tile, offset, parameters, config) -> dict | None:
+def _fit_tile(source, tile: Tile, offset, parameters, config) -> TileFit | TileFailure | None:
     """Read a tile, fit and orient its planes (a Dask task; the result stays on the worker),
     with a wider halo where its neighbourhoods reach further than the halo allows."""
     base = tile.halo - len(LEVELS) * RADIUS_CAP * parameters.rho_delta
@@ -506,18 +605,18 @@ def _fit_tile(source, tile: Tile, offset, parameters, config) -> dict | None:
         try:
             fitted = fit(cloud, parameters, config, stages)
         except ReconstructionError as error:
-            return {"tile": tile, "failed": str(error)}
+            return TileFailure(tile, str(error))
         needed = _halo_needed(fitted, tile, base, parameters.cube_size)
         if needed <= tile.halo:
             stages.counts["tiles_grown"] = int(grown > 0)
-            return {"tile": tile, "cloud": cloud, "fitted": fitted, "counts": stages.counts}
+            return TileFit(tile, cloud, fitted, stages.counts)
         tile = tile.grown(max(needed, GROWTH * tile.halo))
-    return {
-        "tile": tile,
-        "failed": f"its neighbourhoods reach {needed:.4g} from its cubes, beyond the halo of "
+    return TileFailure(
+        tile,
+        f"its neighbourhoods reach {needed:.4g} from its cubes, beyond the halo of "
         f"{tile.halo:.4g} read around them after {GROW_ROUNDS} widenings; the points are "
         "too sparse for tiles this small: use fewer tiles",
-    }
+    )
 
 
 def _halo_needed(fitted, tile: Tile, base: float, cube: float) -> float:
@@ -533,36 +632,36 @@ def _halo_needed(fitted, tile: Tile, base: float, cube: float) -> float:
     return float(needed)
 
 
-def _seam(fit: dict | None, parameters: Parameters) -> dict | None:
+def _seam(fit: TileFit | TileFailure | None, parameters: Parameters) -> Seam | TileFailure | None:
     """A tile's oriented normals at its seams, keyed by the points, and its extremes.
 
     The seam is the band within half the halo of the faces the tile shares with others:
     there both tiles hold the points with their whole neighbourhoods.
     """
-    if fit is None:
-        return None
-    if "failed" in fit:
-        return {"tile": fit["tile"].index, "failed": fit["failed"]}
-    tile, fitted = fit["tile"], fit["fitted"]
+    if not isinstance(fit, TileFit):
+        return fit
+    fitted = fit.fitted
     points, normals = fitted.points, fitted.orientation.normals
     component = fitted.orientation.component
     cube = parameters.cube_size
-    lo, hi = _owned_box(tile, cube)
+    lo, hi = _owned_box(fit.tile, cube)
     width = 0.5 * (HALO_RADII * parameters.rho_delta + HALO_CUBES * cube)
     near = np.all((points >= lo - width) & (points <= hi + width), axis=1) & np.any(
         (np.abs(points - lo) < width) | (np.abs(points - hi) < width), axis=1
     )
     owned = np.all((points >= lo) & (points < hi), axis=1)
-    return {
-        "keys": _point_keys(points[near]),
-        "normals": normals[near],
-        "component": component[near],
-        "extremes": _extremes(
-            fitted.planes.centroids[owned], normals[owned], component[owned], fitted
+    return Seam(
+        keys=_point_keys(points[near]),
+        normals=normals[near],
+        component=component[near],
+        extremes=part_extremes(
+            fitted.planes.centroids[owned],
+            normals[owned],
+            component[owned],
+            fitted.orientation.n_components,
         ),
-        "n_components": fitted.orientation.n_components,
-        "sensors": fitted.orientation.disagreement is not None,
-    }
+        by_sensors=fitted.orientation.disagreement is not None,
+    )
 
 
 def _owned_box(tile: Tile, cube: float) -> tuple[np.ndarray, np.ndarray]:
@@ -577,28 +676,10 @@ def _point_keys(points: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(points).view(np.dtype((np.void, 24))).ravel()
 
 
-def _extremes(centroids, normals, component, fitted) -> np.ndarray:
-    """(C, 6, 2): per component and direction +x, -x, +y, -y, +z, -z, the coordinate of the
-    centroid of its owned point farthest that way (`component_extremes`, the untiled
-    orientation's choice) and that point's normal's cosine with the direction (-inf for a
-    component with no owned point), as the orientation's roots."""
-    out = np.full((fitted.orientation.n_components, 6, 2), -np.inf)
-    extremes = component_extremes(centroids, component, fitted.orientation.n_components)
-    found = extremes >= 0
-    point = extremes[found]
-    out[found, 0] = np.einsum("ik,ik->i", centroids[point], DIRECTIONS[np.nonzero(found)[1]])
-    out[found, 1] = np.einsum("ik,ik->i", normals[point], DIRECTIONS[np.nonzero(found)[1]])
-    return out
-
-
 def _agree(seams) -> tuple[list[dict], float | None, int]:
-    """Flips that make the tiles' orientations agree, as `zeroset.reconstruct` would orient.
-
-    Every (tile, component) pair is a node; two nodes that hold the same seam points are
-    joined, agreeing where most of those points' normals point alike. A spanning forest,
-    largest overlaps first, fixes each node's sign relative to its group; each group then
-    takes the sign of its most extreme point along one of +-x, +-y, +-z (the root rule of
-    `zeroset.orientation.orient_normals`). Tiles oriented by sensors keep their signs.
+    """Flips that make the tiles' orientations agree, as `zeroset.reconstruct` would orient
+    (`zeroset.orientation.agree_parts`, each tile's component a part). Tiles oriented by
+    sensors keep their signs.
 
     Returns
     -------
@@ -607,137 +688,68 @@ def _agree(seams) -> tuple[list[dict], float | None, int]:
     disagreement : float or None
         Share of the seam points held by two tiles whose normals still point apart.
     groups : int
-        Number of groups of nodes joined by seams that hold points a tile owns.
+        Number of groups of parts joined by seams that hold points a tile owns.
     """
-    live = [i for i, seam in enumerate(seams) if seam is not None and "failed" not in seam]
+    live = [i for i, seam in enumerate(seams) if isinstance(seam, Seam)]
     flips: list[dict] = [{} for _ in seams]
     if not live:
         return flips, None, 0
-    first_node = np.cumsum([0] + [seams[i]["n_components"] for i in live])
-    keys = np.concatenate([seams[i]["keys"] for i in live])
-    node = np.concatenate([first_node[k] + seams[i]["component"] for k, i in enumerate(live)])
-    normals = np.concatenate([seams[i]["normals"] for i in live])
-    order = np.argsort(keys, kind="stable")
-    same = keys[order][1:] == keys[order][:-1]
-    a, b = order[:-1][same], order[1:][same]
-    a, b = a[node[a] != node[b]], b[node[a] != node[b]]
-    alike = np.einsum("ij,ij->i", normals[a], normals[b]) >= 0.0
-    sign = np.ones(int(first_node[-1]))
-    group = np.arange(sign.size)
-    _spanning_signs(node[a], node[b], alike, sign, group)
-    if all(seams[i]["sensors"] for i in live):  # the sensors have set every sign
-        sign[:] = 1.0
-    else:
-        _root_signs(np.concatenate([seams[i]["extremes"] for i in live]), sign, group)
-    disagreement = None
-    if a.size:
-        disagreement = float(np.mean((sign[node[a]] * sign[node[b]] > 0) != alike))
+    first = np.cumsum([0] + [seams[i].extremes.shape[0] for i in live])
+    extremes = np.concatenate([seams[i].extremes for i in live])
+    sign, group, disagreement = agree_parts(
+        np.concatenate([seams[i].keys for i in live]),
+        np.concatenate([first[k] + seams[i].component for k, i in enumerate(live)]),
+        np.concatenate([seams[i].normals for i in live]),
+        extremes,
+        by_sensors=all(seams[i].by_sensors for i in live),
+    )
     for k, tile in enumerate(live):
-        local = sign[first_node[k] : first_node[k + 1]]
-        flips[tile] = {int(c): -1.0 for c in np.flatnonzero(local < 0)}
-    extremes = np.concatenate([seams[i]["extremes"] for i in live])
-    owning = np.isfinite(extremes[:, :, 0]).any(axis=1)  # nodes with points of their own
+        flips[tile] = {int(c): -1.0 for c in np.flatnonzero(sign[first[k] : first[k + 1]] < 0)}
+    owning = np.isfinite(extremes[:, :, 0]).any(axis=1)  # parts with points of their own
     return flips, disagreement, int(np.unique(group[owning]).size)
 
 
-def _spanning_signs(u, v, alike, sign, group) -> None:
-    """Signs and groups of the nodes from matched points (u, v, alike), the node pairs with
-    the largest majorities first (Kruskal's order), by a union-find with parity."""
-    parent, parity = np.arange(sign.size), np.zeros(sign.size, dtype=np.int64)
-
-    def find(x):
-        flip = 0
-        while parent[x] != x:
-            flip ^= parity[x]
-            x = parent[x]
-        return x, flip
-
-    pairs, inverse = np.unique(
-        np.sort(np.stack([u, v], axis=1), axis=1), axis=0, return_inverse=True
-    )
-    votes = np.bincount(inverse.ravel(), weights=np.where(alike, 1.0, -1.0), minlength=len(pairs))
-    for (p, q), vote in sorted(
-        zip(pairs.tolist(), votes.tolist(), strict=True), key=lambda e: -abs(e[1])
-    ):
-        (rp, fp), (rq, fq) = find(p), find(q)
-        if rp != rq:
-            parent[rq], parity[rq] = rp, fp ^ fq ^ (0 if vote >= 0 else 1)
-    for x in range(sign.size):
-        root, flip = find(x)
-        group[x], sign[x] = root, -1.0 if flip else 1.0
-
-
-def _root_signs(extremes, sign, group) -> None:
-    """Turn each group so that its most extreme point's normal points outward."""
-    for g in np.unique(group):
-        members = np.flatnonzero(group == g)
-        coordinate = extremes[members, :, 0]
-        best = np.argmax(coordinate, axis=0)  # per direction, the member farthest that way
-        found = np.isfinite(coordinate[best, np.arange(6)])
-        if not found.any():
-            continue
-        alignment = np.where(found, extremes[members[best], np.arange(6), 1], 0.0)
-        _, turn = root_rule((alignment * sign[members[best]])[None])
-        sign[members] *= turn[0]
-
-
 def _contour_tile(
-    fit: dict | None, flips: dict, parameters: Parameters, config: ReconstructionConfig
-) -> dict:
+    fit: TileFit | TileFailure | None,
+    flips: dict,
+    parameters: Parameters,
+    config: ReconstructionConfig,
+) -> Piece:
     """Contour the cubes a tile owns (a Dask task)."""
     import socket
 
-    peak = peak_mib()
     worker = socket.gethostname()
     try:
         worker = require("distributed", "tiled reconstruction (--tiles)").get_worker().address
     except ValueError:
         pass
-    empty = {
-        "edge_keys": np.zeros(0, dtype=np.int64),
-        "vertices": np.zeros((0, 3)),
-        "faces": np.zeros((0, 3), dtype=np.int64),
-        "cube_keys": np.zeros(0, dtype=np.int64),
-        "support": DataSupport(
-            points=np.zeros((0, 3)),
-            radii=np.zeros(0),
-            reach=np.zeros(0),
-            measured=np.zeros(0, bool),
-            planes=np.zeros((0, 3)),
-        ),
-        "counts": {},
-        "peak_mib": peak,
-        "worker": worker,
-    }
-    if fit is None or "failed" in fit:
-        return empty
-    fitted = fit["fitted"]
+    if not isinstance(fit, TileFit):
+        return Piece.empty(peak_mib(), worker)
+    fitted = fit.fitted
     sign = np.ones(fitted.orientation.n_components)
     for component, flip in flips.items():
         sign[component] = flip
     normals = fitted.orientation.normals * sign[fitted.orientation.component][:, None]
     stages = Stages((), show=False)
     field_, bridges, jets = stages.run(
-        "signed distance", distance_field, fit["cloud"], fitted, normals, parameters, config
+        "signed distance", distance_field, fit.cloud, fitted, normals, parameters, config
     )
-    edge_keys, vertices, faces, cube_keys = keyed_marching_cubes(field_, owned=fit["tile"].owned)
+    edge_keys, vertices, faces, cube_keys = keyed_marching_cubes(field_, owned=fit.tile.owned)
     support = data_support(fitted, bridges, parameters)
-    lo, hi = fit["tile"].owned
-    owned = _in_cubes(support.points, lo, hi, parameters.cube_size)
+    lo, hi = fit.tile.owned
     if jets is not None:
         jets = select_jets(jets, _in_cubes(jets.centres, lo, hi, parameters.cube_size))
-    peak = peak_mib()
-    return {
-        **empty,
-        "edge_keys": edge_keys,
-        "vertices": vertices,
-        "faces": faces,
-        "cube_keys": cube_keys,
-        "support": support.select(owned),
-        "counts": add_counts(dict(fit["counts"]), stages.counts),
-        "peak_mib": peak,
-        "jets": jets,
-    }
+    return Piece(
+        edge_keys=edge_keys,
+        vertices=vertices,
+        faces=faces,
+        cube_keys=cube_keys,
+        support=support.select(_in_cubes(support.points, lo, hi, parameters.cube_size)),
+        jets=jets,
+        counts=add_counts(dict(fit.counts), stages.counts),
+        peak_mib=peak_mib(),
+        worker=worker,
+    )
 
 
 def _in_cubes(positions: np.ndarray, lo, hi, cube: float) -> np.ndarray:
@@ -748,7 +760,7 @@ def _in_cubes(positions: np.ndarray, lo, hi, cube: float) -> np.ndarray:
 
 def _owned_jets(pieces) -> Jets | None:
     """The union of the jets each tile owns (those centred in its cubes), or None."""
-    owned = [p["jets"] for p in pieces if p.get("jets") is not None]
+    owned = [p.jets for p in pieces if p.jets is not None]
     return concatenate_jets(owned) if owned else None
 
 
@@ -756,11 +768,11 @@ def _weld(pieces) -> tuple[Mesh, float]:
     """One mesh of the tiles' pieces: vertices shared by global edge key, faces in cube
     order; and how far apart two tiles put one vertex (0 when their halos held all that
     its corners' values depend on)."""
-    keys = np.concatenate([p["edge_keys"] for p in pieces])
-    vertices = np.concatenate([p["vertices"] for p in pieces])
-    starts = np.cumsum([0] + [len(p["edge_keys"]) for p in pieces[:-1]])
-    faces = np.concatenate([p["faces"] + s for p, s in zip(pieces, starts, strict=True)])
-    cube_keys = np.concatenate([p["cube_keys"] for p in pieces])
+    keys = np.concatenate([p.edge_keys for p in pieces])
+    vertices = np.concatenate([p.vertices for p in pieces])
+    starts = np.cumsum([0] + [len(p.edge_keys) for p in pieces[:-1]])
+    faces = np.concatenate([p.faces + s for p, s in zip(pieces, starts, strict=True)])
+    cube_keys = np.concatenate([p.cube_keys for p in pieces])
     unique, first, inverse = np.unique(keys, return_index=True, return_inverse=True)
     order = np.argsort(cube_keys, kind="stable")
     gap = np.linalg.norm(vertices - vertices[first][inverse.ravel()], axis=1).max(initial=0.0)
