@@ -52,7 +52,7 @@ def test_options_reach_the_pipeline(sphere_file, tmp_path):
             str(sphere_file),
             "-o",
             str(out),
-            "--radius",
+            "--rho-delta",
             "0.2",
             "--cube-size",
             "0.12",
@@ -154,10 +154,34 @@ def test_unknown_output_format_exits_2(sphere_file, tmp_path, capsys):
 
 def test_no_surface_exits_1(sphere_file, tmp_path, capsys):
     assert (
-        main(["reconstruct", str(sphere_file), "-o", str(tmp_path / "m.ply"), "--radius", "1e-5"])
+        main(
+            ["reconstruct", str(sphere_file), "-o", str(tmp_path / "m.ply"), "--rho-delta", "1e-5"]
+        )
         == 1
     )
     assert "rho_delta" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    "args, old, new",
+    [
+        (["reconstruct", "in.ply", "-o", "m.ply", "--radius", "0.1"], "--radius", "--rho-delta"),
+        (["reconstruct", "in.ply", "--threshold=5"], "--threshold", "--threshold-mm"),
+        (["inspect", "m.ply", "-o", "out", "--threshold", "5"], "--threshold", "--threshold-mm"),
+        (["evaluate", "m.ply", "--points", "in.ply"], "--points", "--scan"),
+    ],
+)
+def test_a_renamed_option_names_its_new_name(args, old, new, capsys):
+    assert main(args) == 2
+    assert capsys.readouterr().err == f"zeroset: error: {old} is now {new}\n"
+
+
+def test_options_are_not_abbreviated(sphere_file, tmp_path, capsys):
+    # "--quant" would otherwise be taken for --quantile, and "--radius" for --radius-k.
+    with pytest.raises(SystemExit) as exit_info:
+        main(["reconstruct", str(sphere_file), "-o", str(tmp_path / "m.ply"), "--quant", "0.5"])
+    assert exit_info.value.code == 2
+    assert "unrecognized arguments: --quant" in capsys.readouterr().err
 
 
 def test_version_prints_the_package_version(capsys):
@@ -356,7 +380,7 @@ def test_evaluate_reports_reference_points_and_quality(tmp_path, capsys):
             str(mesh),
             "--reference",
             str(tmp_path / "tee-truth.ply"),
-            "--points",
+            "--scan",
             str(points),
             "--samples",
             "20000",

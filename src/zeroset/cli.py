@@ -12,6 +12,13 @@ __all__ = ["main"]
 
 DEMO_POINTS = 40_000
 HTML_SUFFIXES = (".html", ".htm")
+#: Options renamed so that each has one meaning and names its units: (command, old): new.
+RENAMED = {
+    ("reconstruct", "--radius"): "--rho-delta",
+    ("reconstruct", "--threshold"): "--threshold-mm",
+    ("inspect", "--threshold"): "--threshold-mm",
+    ("evaluate", "--points"): "--scan",
+}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -26,6 +33,13 @@ def main(argv: list[str] | None = None) -> int:
     `OSError`, or too little memory); any other exception, a ``ValueError`` from deep
     inside too, is a bug, reported as such with exit status 1.
     """
+    argv = sys.argv[1:] if argv is None else list(argv)
+    command = next((arg for arg in argv if not arg.startswith("-")), None)
+    for arg in argv:
+        renamed = RENAMED.get((command, arg.split("=")[0]))
+        if renamed is not None:
+            print(f"zeroset: error: {arg.split('=')[0]} is now {renamed}", file=sys.stderr)
+            return 2
     parser = _parser()
     args = parser.parse_args(argv)
     if args.command is None:
@@ -72,137 +86,184 @@ def _as_list(value) -> list:
 
 
 def _parser() -> argparse.ArgumentParser:
-    """Build the argument parser; reconstruction options come from ReconstructionConfig."""
+    """The argument parser: one builder per command; no option is abbreviated."""
     from . import __version__
-    from .io import MESH_FORMATS, POINT_FORMATS, POSE_FORMATS
 
-    mesh_help = "mesh: " + " ".join(MESH_FORMATS)
-    points_help = "points: " + " ".join(POINT_FORMATS)
     parser = argparse.ArgumentParser(
-        prog="zeroset", description="Triangle meshes from noisy point clouds (Hoppe 1992)."
+        prog="zeroset",
+        description="Triangle meshes from noisy point clouds (Hoppe 1992).",
+        allow_abbrev=False,
     )
     parser.add_argument("--version", action="version", version=f"zeroset {__version__}")
     parser.set_defaults(command=None, debug=False)
     commands = parser.add_subparsers(title="commands")
-
-    common = argparse.ArgumentParser(add_help=False)
+    common = argparse.ArgumentParser(add_help=False, allow_abbrev=False)
     common.add_argument("--quiet", action="store_true", help="print nothing but errors")
     common.add_argument("--debug", action="store_true", help="show tracebacks")
-    writes = argparse.ArgumentParser(add_help=False)
+    writes = argparse.ArgumentParser(add_help=False, allow_abbrev=False)
     writes.add_argument(
         "--force", action="store_true", help="replace output files that exist (never an input)"
     )
+    for build in (
+        _reconstruct_command,
+        _optimize_command,
+        _render_command,
+        _inspect_command,
+        _demo_command,
+        _synth_command,
+        _evaluate_command,
+    ):
+        build(commands, [common, writes])
+    return parser
 
-    rec = commands.add_parser(
+
+def _formats(kind: str) -> str:
+    """The file suffixes zeroset reads (and writes) for `kind`: mesh, points or poses."""
+    from . import io
+
+    formats = {"mesh": io.MESH_FORMATS, "points": io.POINT_FORMATS, "poses": io.POSE_FORMATS}
+    return " ".join(formats[kind])
+
+
+def _reconstruct_command(commands, parents) -> None:
+    """``zeroset reconstruct``: points (one file or several scans) to a mesh."""
+    parser = commands.add_parser(
         "reconstruct",
-        parents=[common, writes],
+        allow_abbrev=False,
+        parents=parents,
         help="reconstruct a mesh from points",
         description="Reconstruct a triangle mesh from a point cloud file, or from several scans.",
     )
-    rec.add_argument(
-        "input", type=Path, nargs="+", help=points_help + "; several scans are merged into one"
+    parser.add_argument(
+        "input",
+        type=Path,
+        nargs="+",
+        help="points: " + _formats("points") + "; several scans are merged into one",
     )
-    rec.add_argument("-o", "--output", type=Path, required=True, help=mesh_help)
-    rec.add_argument(
+    parser.add_argument(
+        "-o", "--output", type=Path, required=True, help="mesh: " + _formats("mesh")
+    )
+    parser.add_argument(
         "--poses",
         type=Path,
-        help="pose of each scan: " + " ".join(POSE_FORMATS) + " (Stanford bmesh lines, or 4x4 "
+        help="pose of each scan: " + _formats("poses") + " (Stanford bmesh lines, or 4x4 "
         "matrices by scan file name or in order); each scan's sensor sits at its frame's "
         "origin unless --viewpoint says where",
     )
-    rec.add_argument(
+    parser.add_argument(
         "--register",
         action="store_true",
         help="refine the poses by ICP (Generalized-ICP) against the other scans; print residuals",
     )
-    rec.add_argument(
+    parser.add_argument(
         "--tiles",
         help="reconstruct in tiles run as Dask tasks: auto, or NxMxK tiles per axis; each "
         "reads its own points, and the pieces are welded exactly",
     )
-    rec.add_argument(
+    parser.add_argument(
         "--scheduler",
         metavar="ADDRESS",
         help="with --tiles: a dask.distributed scheduler (default: a local cluster)",
     )
-    rec.add_argument(
+    parser.add_argument(
         "--workers",
         type=int,
         help="with --tiles: worker processes of the local cluster (default: one per core)",
     )
-    rec.add_argument(
+    parser.add_argument(
         "--allow-gaps",
         action="store_true",
         help="with --tiles: leave out a tile whose fit fails, with a warning (default: stop)",
     )
-    rec.add_argument(
+    parser.add_argument(
         "--report",
         type=Path,
         help="write parameters, counts and timings: .json, or .html with a 3D viewer",
     )
-    rec.add_argument("--preview", type=Path, help="write a PNG picture of the mesh")
-    rec.add_argument("--ascii", action="store_true", help="write PLY as text instead of binary")
-    rec.add_argument(
+    parser.add_argument("--preview", type=Path, help="write a PNG picture of the mesh")
+    parser.add_argument("--ascii", action="store_true", help="write PLY as text instead of binary")
+    parser.add_argument(
         "--optimize",
         action="store_true",
         help="run phase 2, mesh optimisation (Hoppe 1993), on every point left after --crop",
     )
-    rec.add_argument(
+    parser.add_argument(
         "--inspect",
         type=Path,
         metavar="DIR",
         help="inspect the mesh as a pipe (see 'zeroset inspect') and write the results to DIR",
     )
-    _add_inspection_options(rec)
-    _add_config_options(rec)
-    rec.set_defaults(command="reconstruct", run=_run_reconstruct)
+    _add_inspection_options(parser)
+    _add_config_options(parser)
+    parser.set_defaults(command="reconstruct", run=_run_reconstruct)
 
-    opt = commands.add_parser(
+
+def _optimize_command(commands, parents) -> None:
+    """``zeroset optimize``: phase 2 on a mesh and its points."""
+    parser = commands.add_parser(
         "optimize",
-        parents=[common, writes],
+        allow_abbrev=False,
+        parents=parents,
         help="optimise a mesh against points (phase 2)",
         description="Optimise a triangle mesh against the points it approximates (Hoppe "
         "1993): edge collapse, split and swap and vertex fitting lower the energy "
         "distance^2 + c_rep x vertices + kappa x edge lengths^2.",
     )
-    opt.add_argument("mesh", type=Path, help="starting mesh: .ply .obj .stl .off")
-    opt.add_argument("points", type=Path, help=points_help)
-    opt.add_argument("-o", "--output", type=Path, required=True, help=mesh_help)
-    opt.add_argument("--report", type=Path, help="write parameters, energies and moves as JSON")
-    opt.add_argument("--ascii", action="store_true", help="write PLY as text instead of binary")
-    opt.add_argument("--c-rep", type=float, help="cost of a vertex (default: from the noise)")
-    opt.add_argument("--kappa", type=float, help="first spring constant (default: from the data)")
-    opt.add_argument("--seed", type=int, default=0, help="seed of the random move order")
-    opt.set_defaults(command="optimize", run=_run_optimize)
+    parser.add_argument("mesh", type=Path, help="starting mesh: " + _formats("mesh"))
+    parser.add_argument("points", type=Path, help="points: " + _formats("points"))
+    parser.add_argument(
+        "-o", "--output", type=Path, required=True, help="mesh: " + _formats("mesh")
+    )
+    parser.add_argument("--report", type=Path, help="write parameters, energies and moves as JSON")
+    parser.add_argument("--ascii", action="store_true", help="write PLY as text instead of binary")
+    parser.add_argument("--c-rep", type=float, help="cost of a vertex (default: from the noise)")
+    parser.add_argument(
+        "--kappa", type=float, help="first spring constant (default: from the data)"
+    )
+    parser.add_argument("--seed", type=int, default=0, help="seed of the random move order")
+    parser.set_defaults(command="optimize", run=_run_optimize)
 
-    ren = commands.add_parser(
+
+def _render_command(commands, parents) -> None:
+    """``zeroset render``: a PNG picture of a mesh."""
+    parser = commands.add_parser(
         "render",
-        parents=[common, writes],
+        allow_abbrev=False,
+        parents=parents,
         help="draw a mesh as a PNG picture",
         description="Draw a mesh, shaded (outside blue, inside orange), from two views, "
         "off-screen, with its boundary edges in red and optionally the points, their normals "
         "and colours by distance to the points.",
     )
-    ren.add_argument("mesh", type=Path, help=mesh_help)
-    ren.add_argument(
-        "points", type=Path, nargs="?", help=points_help.replace("points", "points to draw", 1)
+    parser.add_argument("mesh", type=Path, help="mesh: " + _formats("mesh"))
+    parser.add_argument(
+        "points",
+        type=Path,
+        nargs="?",
+        help="points to draw: " + _formats("points"),
     )
-    ren.add_argument("-o", "--output", type=Path, required=True, help="picture: .png")
-    ren.add_argument("--hide-points", action="store_true", help="use POINTS but do not draw them")
-    ren.add_argument("--normals", action="store_true", help="draw the normals POINTS carry")
-    ren.add_argument(
+    parser.add_argument("-o", "--output", type=Path, required=True, help="picture: .png")
+    parser.add_argument(
+        "--hide-points", action="store_true", help="use POINTS but do not draw them"
+    )
+    parser.add_argument("--normals", action="store_true", help="draw the normals POINTS carry")
+    parser.add_argument(
         "--intensity", action="store_true", help="colour the points by the intensity they carry"
     )
-    ren.add_argument(
+    parser.add_argument(
         "--distance", action="store_true", help="colour the mesh by how far POINTS lie from it"
     )
-    ren.add_argument("--no-boundaries", action="store_true", help="do not mark boundary edges")
-    ren.add_argument("--size", default="1200x600", help="picture size WIDTHxHEIGHT in pixels")
-    ren.set_defaults(command="render", run=_run_render)
+    parser.add_argument("--no-boundaries", action="store_true", help="do not mark boundary edges")
+    parser.add_argument("--size", default="1200x600", help="picture size WIDTHxHEIGHT in pixels")
+    parser.set_defaults(command="render", run=_run_render)
 
-    ins = commands.add_parser(
+
+def _inspect_command(commands, parents) -> None:
+    """``zeroset inspect``: a pipe's centreline, deviation, ovality and defects."""
+    parser = commands.add_parser(
         "inspect",
-        parents=[common, writes],
+        allow_abbrev=False,
+        parents=parents,
         help="inspect a pipe: centreline, deviation, ovality and defects",
         description="Fit a pipe's centreline and nominal diameter to its mesh, measure "
         "every vertex's (and point's) deviation from the nominal pipe and the ovality per "
@@ -211,34 +272,41 @@ def _parser() -> argparse.ArgumentParser:
         "unrolled wall), ovality.png, deviation.png (the mesh coloured by deviation) and "
         "report.html to DIR.",
     )
-    ins.add_argument("mesh", type=Path, help="the pipe's wall: .ply .obj .stl .off")
-    ins.add_argument(
+    parser.add_argument("mesh", type=Path, help="the pipe's wall: " + _formats("mesh"))
+    parser.add_argument(
         "points",
         type=Path,
         nargs="?",
-        help=points_help.replace("points", "the scan the mesh was made from (better depths "
-                                 "and noise-based thresholds; with its sensor positions, "
-                                 "depths fitted along the beams)", 1),
-    )  # fmt: skip
-    ins.add_argument("-o", "--output", type=Path, required=True, metavar="DIR", help="folder")
-    _add_inspection_options(ins)
-    ins.set_defaults(command="inspect", run=_run_inspect)
+        help="the scan the mesh was made from (better depths and noise-based thresholds; "
+        "with its sensor positions, depths fitted along the beams): " + _formats("points"),
+    )
+    parser.add_argument("-o", "--output", type=Path, required=True, metavar="DIR", help="folder")
+    _add_inspection_options(parser)
+    parser.set_defaults(command="inspect", run=_run_inspect)
 
-    demo = commands.add_parser(
+
+def _demo_command(commands, parents) -> None:
+    """``zeroset demo``: a built-in noisy pipe, reconstructed."""
+    parser = commands.add_parser(
         "demo",
-        parents=[common],
+        allow_abbrev=False,
+        parents=parents[:1],
         help="reconstruct a built-in noisy pipe",
         description="Reconstruct a simulated noisy open pipe (radius "
         "0.25 m, length 1 m, noise 2 mm) and write the results to a folder.",
     )
-    demo.add_argument("--out", type=Path, default=Path("zeroset-demo"), help="output folder")
-    demo.add_argument("--points", type=int, default=DEMO_POINTS, help="number of points")
-    demo.add_argument("--seed", type=int, default=0, help="seed of the simulated scan")
-    demo.set_defaults(command="demo", run=_run_demo)
+    parser.add_argument("--out", type=Path, default=Path("zeroset-demo"), help="output folder")
+    parser.add_argument("--points", type=int, default=DEMO_POINTS, help="number of points")
+    parser.add_argument("--seed", type=int, default=0, help="seed of the simulated scan")
+    parser.set_defaults(command="demo", run=_run_demo)
 
-    synth = commands.add_parser(
+
+def _synth_command(commands, parents) -> None:
+    """``zeroset synth``: a seeded synthetic cloud and its true surface."""
+    parser = commands.add_parser(
         "synth",
-        parents=[common, writes],
+        allow_abbrev=False,
+        parents=parents,
         help="write a synthetic cloud and its true surface",
         description="Write seeded synthetic points (PLY, with normals and, for scans, sensor "
         "positions) and the true surface beside them as <stem>-truth.ply; the damaged-* kinds "
@@ -246,35 +314,35 @@ def _parser() -> argparse.ArgumentParser:
         "<stem>-truth.json. Clock angles are degrees clockwise looking along the pipe from its "
         "start, 12 o'clock (0) being +y (for pipe-run: up, +z at the start, carried along).",
     )
-    synth.add_argument("kind", choices=sorted(SYNTH_KINDS), help="what to sample")
-    synth.add_argument("-o", "--output", type=Path, required=True, help="points file (.ply)")
-    synth.add_argument(
+    parser.add_argument("kind", choices=sorted(SYNTH_KINDS), help="what to sample")
+    parser.add_argument("-o", "--output", type=Path, required=True, help="points file (.ply)")
+    parser.add_argument(
         "--points",
         type=int,
         default=20_000,
         help="number of points (surfaces; scans: see --rotation-step)",
     )
-    synth.add_argument(
+    parser.add_argument(
         "--noise", type=float, default=0.0, help="Gaussian noise per axis in metres (surfaces)"
     )
-    synth.add_argument(
+    parser.add_argument(
         "--noise-scale",
         type=float,
         default=1.0,
         help="scale of the scanner's range noise model (scans)",
     )
-    synth.add_argument(
+    parser.add_argument(
         "--rotation-step",
         type=float,
         default=1.0,
         help="degrees between scan lines (scans); 1 gives ~184k points per station",
     )
-    synth.add_argument("--radius", type=float, help="pipe or sphere radius in metres")
-    synth.add_argument(
+    parser.add_argument("--radius", type=float, help="pipe or sphere radius in metres")
+    parser.add_argument(
         "--length", type=float, help="pipe length in metres (cylinder, tee, straight pipes)"
     )
     for kind in ("dent", "bulge"):
-        synth.add_argument(
+        parser.add_argument(
             f"--{kind}",
             action="append",
             default=[],
@@ -282,19 +350,19 @@ def _parser() -> argparse.ArgumentParser:
             help=f"add a {kind} (damaged-*): centre at AXIAL metres along the centreline and "
             f"CLOCK degrees, DEPTH and WIDTH (patch diameter) in metres; repeatable",
         )
-    synth.add_argument(
+    parser.add_argument(
         "--ovality",
         metavar="VALUE[,CLOCK]",
         help="(D_max - D_min) / D of the whole pipe, major axis at CLOCK degrees "
         "(default 0) (damaged-*, pipe-run)",
     )
-    synth.add_argument(
+    parser.add_argument(
         "--stations",
         metavar="S0,S1,...",
         help="scanner positions in metres along the centreline (damaged-pipe-scan, "
         "damaged-elbow-scan; default: the centreline's middle)",
     )
-    run = synth.add_argument_group(
+    run = parser.add_argument_group(
         "pipe-run",
         "a random run (0.4 m diameter, starting along +x), scanned at stations 0.5-1.5 m apart",
     )
@@ -315,38 +383,41 @@ def _parser() -> argparse.ArgumentParser:
         metavar="N",
         help="write N points sampled uniformly on the wall instead of the scan",
     )
-    synth.add_argument("--outliers", type=float, default=0.0, help="share of uniform outliers")
-    synth.add_argument("--seed", type=int, default=0, help="seed")
-    synth.set_defaults(command="synth", run=_run_synth)
+    parser.add_argument("--outliers", type=float, default=0.0, help="share of uniform outliers")
+    parser.add_argument("--seed", type=int, default=0, help="seed")
+    parser.set_defaults(command="synth", run=_run_synth)
 
-    evaluate = commands.add_parser(
+
+def _evaluate_command(commands, parents) -> None:
+    """``zeroset evaluate``: a mesh against a reference and the scan points."""
+    parser = commands.add_parser(
         "evaluate",
-        parents=[common, writes],
+        allow_abbrev=False,
+        parents=parents,
         help="measure a mesh against a reference and/or points",
         description="Report a mesh's quality (manifoldness, boundary loops, triangle shape) "
         "and, when given, its distance to a reference surface (Chamfer, Hausdorff, F-score, "
         "normal consistency) and to the scan points (distances, coverage).",
     )
-    evaluate.add_argument("mesh", type=Path, help="mesh to evaluate: .ply .obj .stl .off")
-    evaluate.add_argument("--reference", type=Path, help="true surface (a mesh)")
-    evaluate.add_argument("--points", type=Path, help="scan points the mesh was made from")
-    evaluate.add_argument(
+    parser.add_argument("mesh", type=Path, help="mesh to evaluate: " + _formats("mesh"))
+    parser.add_argument("--reference", type=Path, help="true surface (a mesh)")
+    parser.add_argument("--scan", type=Path, help="the scan's points the mesh was made from")
+    parser.add_argument(
         "--samples",
         type=int,
         default=100_000,
         help="points sampled on each surface (default: 100000)",
     )
-    evaluate.add_argument(
+    parser.add_argument(
         "--tau",
         type=float,
         action="append",
         help="F-score threshold as a fraction of the reference's bounding-box "
         "diagonal; repeatable (default: 0.01 and 0.005)",
     )
-    evaluate.add_argument("--json", type=Path, help="also write the report as JSON")
-    evaluate.add_argument("--seed", type=int, default=0, help="seed of the surface sampling")
-    evaluate.set_defaults(command="evaluate", run=_run_evaluate)
-    return parser
+    parser.add_argument("--json", type=Path, help="also write the report as JSON")
+    parser.add_argument("--seed", type=int, default=0, help="seed of the surface sampling")
+    parser.set_defaults(command="evaluate", run=_run_evaluate)
 
 
 #: ``zeroset synth`` kinds: generator name in zeroset.synthetic, and whether it takes n.
@@ -374,8 +445,8 @@ def _add_inspection_options(parser: argparse.ArgumentParser) -> None:
         "data's units (default: the median measured diameter)",
     )  # fmt: skip
     group.add_argument(
-        "--threshold", type=float, metavar="MM", help="smallest depth reported as a defect, "
-        "in mm (default: 4.5 standard errors of the local noise)",
+        "--threshold-mm", type=float, metavar="MM", help="smallest depth reported as a "
+        "defect, in mm (default: 4.5 standard errors of the local noise)",
     )  # fmt: skip
     group.add_argument(
         "--up", type=_number_list(3), metavar="x,y,z", help="the world's up, where 12 o'clock "
@@ -384,16 +455,23 @@ def _add_inspection_options(parser: argparse.ArgumentParser) -> None:
 
 
 def _add_config_options(parser: argparse.ArgumentParser) -> None:
-    """Add one --option per ReconstructionConfig field, named after it."""
+    """Add one --option per ReconstructionConfig field, named after it, typed by its
+    annotation: a bool is a --x/--no-x switch, a tuple comma-separated numbers."""
+    import types
+    import typing
+
     from .config import ReconstructionConfig
 
+    hints = typing.get_type_hints(ReconstructionConfig)
     group = parser.add_argument_group("reconstruction parameters")
     for f in fields(ReconstructionConfig):
         names = [f"--{f.name.replace('_', '-')}"]
         if "flag" in f.metadata:
             names.append(f"--{f.metadata['flag']}")
-        kind = str(f.type)
-        if kind == "bool":
+        kind = hints[f.name]
+        if isinstance(kind, types.UnionType):  # X | None: an option of type X
+            kind = next(t for t in typing.get_args(kind) if t is not type(None))
+        if kind is bool:
             group.add_argument(
                 *names,
                 dest=f.name,
@@ -402,18 +480,14 @@ def _add_config_options(parser: argparse.ArgumentParser) -> None:
                 help=f.metadata["help"] + f" (default: {'on' if f.default else 'off'})",
             )
             continue
-        if "tuple" in kind:
-            convert = _number_list(f.metadata["nargs"])
-            metavar = ",".join(
-                "xyz"[: f.metadata["nargs"]]
-                if f.metadata["nargs"] == 3
-                else ("x0", "y0", "z0", "x1", "y1", "z1")
-            )
+        if typing.get_origin(kind) is tuple:
+            count = len(typing.get_args(kind))
+            convert = _number_list(count)
+            metavar = "x,y,z" if count == 3 else "x0,y0,z0,x1,y1,z1"
         elif "choices" in f.metadata:
             convert, metavar = str, "{" + ",".join(f.metadata["choices"]) + "}"
         else:
-            convert = int if kind.startswith("int") else float
-            metavar = f.name.upper()
+            convert, metavar = kind, f.name.upper()
         default = f" (default: {f.default})" if f.default is not None else ""
         group.add_argument(
             *names,
@@ -744,7 +818,7 @@ def _inspect(args: argparse.Namespace, mesh, points, viewpoints=None) -> tuple:
             points,
             viewpoints=viewpoints,
             nominal_diameter=args.nominal_diameter,
-            threshold=None if args.threshold is None else args.threshold / 1000.0,
+            threshold=None if args.threshold_mm is None else args.threshold_mm / 1000.0,
             up=UP if args.up is None else args.up,
         )
     except InputError as error:
@@ -945,10 +1019,10 @@ def _run_evaluate(args: argparse.Namespace) -> int:
     from . import io
     from .evaluate import evaluate, format_report
 
-    _check_outputs([args.json], [args.mesh, args.reference, args.points], force=args.force)
+    _check_outputs([args.json], [args.mesh, args.reference, args.scan], force=args.force)
     mesh = io.read_mesh(args.mesh)
     reference = io.read_mesh(args.reference) if args.reference else None
-    points = io.read_points(args.points).points if args.points else None
+    points = io.read_points(args.scan).points if args.scan else None
     taus = tuple(args.tau) if args.tau else (0.01, 0.005)
     report = evaluate(
         mesh, reference=reference, points=points, n_samples=args.samples, taus=taus, rng=args.seed
@@ -956,7 +1030,7 @@ def _run_evaluate(args: argparse.Namespace) -> int:
     report["files"] = {
         "mesh": str(args.mesh),
         "reference": args.reference and str(args.reference),
-        "points": args.points and str(args.points),
+        "points": args.scan and str(args.scan),
     }
     if args.json is not None:
         io.write_json(args.json, report)

@@ -26,7 +26,7 @@ class ReconstructionConfig:
     """Parameters of :func:`zeroset.reconstruct`; None means "choose automatically"."""
 
     rho_delta: float | None = _opt(
-        None, "neighbourhood radius rho+delta in data units (default: estimated)", flag="radius"
+        None, "neighbourhood radius rho+delta in data units (default: estimated)"
     )
     cube_size: float | None = _opt(
         None, "marching-cubes cube size (default: cube_factor x rho_delta)"
@@ -49,10 +49,10 @@ class ReconstructionConfig:
         None, "keep the point nearest each voxel's centroid, voxels of this size", flag="voxel"
     )
     crop: tuple[float, float, float, float, float, float] | None = _opt(
-        None, "keep points inside the box xmin,ymin,zmin,xmax,ymax,zmax", nargs=6
+        None, "keep points inside the box xmin,ymin,zmin,xmax,ymax,zmax"
     )
     viewpoint: tuple[float, float, float] | None = _opt(
-        None, "sensor position x,y,z (in each scan's own frame): normals face it", nargs=3
+        None, "sensor position x,y,z (in each scan's own frame): normals face it"
     )
     contour: str = _opt(
         "marching",
