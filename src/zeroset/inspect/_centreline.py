@@ -227,7 +227,7 @@ def fit_pipe(
     """
     rng = require_rng(rng)
     shift = mesh.vertices.mean(axis=0)  # curvatures far from the origin lose digits
-    mesh = Mesh(mesh.vertices - shift, mesh.faces)
+    mesh = mesh.translated(-shift)
     normals = vertex_normals(mesh)
     curvature, defined = _wall_curvature(mesh, normals)
     radius, towards_axis = _radius_and_side(mesh, rng)
