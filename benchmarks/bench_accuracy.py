@@ -68,7 +68,7 @@ def pipe_rows(sizes) -> list[dict]:
                     "bias": bias,
                     "error": error,
                     "faces": result.mesh.n_faces,
-                    "support": None if result.jets is None else result.jets.support,
+                    "support": result.stats.get("fit_support"),
                     "rho_delta": result.parameters.rho_delta,
                 }
             )

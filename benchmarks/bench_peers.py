@@ -126,8 +126,8 @@ def zeroset_run(points, viewpoints=None, surface="jets"):
     stages["(outside stages)"] = max(total - sum(stages.values()), 0.0)
     parameters = result.parameters
     params = {"rho_delta": parameters.rho_delta, "cube_size": parameters.cube_size}
-    if result.jets is not None:
-        params["fit_support"] = result.jets.support
+    if "fit_support" in result.stats:
+        params["fit_support"] = result.stats["fit_support"]
     return result.mesh.vertices, result.mesh.faces, stages, params
 
 

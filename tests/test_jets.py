@@ -88,7 +88,7 @@ def test_error_falls_as_points_are_added():
     for n in (5_000, 20_000, 80_000):
         result = reconstruct(_sample("pipe", 0.25, n, 0.002).points)
         errors.append(_surface_errors("pipe", 0.25, result.mesh)[1])
-        supports.append(result.jets.support / result.parameters.rho_delta)
+        supports.append(result.surface.support / result.parameters.rho_delta)
     assert errors[0] > errors[1] > errors[2]
     assert errors[2] < 0.001  # half the noise of one point
     assert supports[0] <= supports[1] <= supports[2]  # more points per support
@@ -122,10 +122,10 @@ def test_supports_shrink_to_follow_detail(monkeypatch):
     followed = reconstruct(points)
     monkeypatch.setattr("zeroset.jets.DETAIL_MARGIN", np.inf)
     flattened = reconstruct(points)
-    assert followed.jets.support < 0.6 * flattened.jets.support
+    assert followed.surface.support < 0.6 * flattened.surface.support
     assert error(followed) < 0.4 * error(flattened)
     assert error(followed) < 0.0003  # below the noise of one point
-    assert "shrunk to follow detail" in followed.jets.notes[0]
+    assert "shrunk to follow detail" in followed.surface.notes[0]
 
 
 def test_crowded_pilots_measure_no_detail():
@@ -149,7 +149,7 @@ def test_crowded_pilots_measure_no_detail():
 
 def test_vertices_lie_on_the_blended_surface():
     result = reconstruct(_sample("torus", 0.13, 20_000, 0.002).points)
-    values, _ = evaluate_jets(result.jets, result.mesh.vertices - result.offset)
+    values, _ = evaluate_jets(result.surface, result.mesh.vertices - result.offset)
     assert np.abs(values).max() < 1e-3 * 0.13
     assert result.stats["refine_levels"] >= 1
 
@@ -158,7 +158,7 @@ def test_projection_turns_no_triangle_over():
     # A coarse mesh around a sphere whose vertices the projection pulls a long way in.
     sample = sample_sphere(3_000, radius=1.0, rng=0)
     result = reconstruct(sample.points, refine_levels=0)
-    jets = result.jets
+    jets = result.surface
     vertices = result.mesh.vertices - result.offset
     before = Mesh(vertices=vertices * 1.08, faces=result.mesh.faces)  # all outside
     after, held = project_to_surface(before, jets)
@@ -193,19 +193,19 @@ def test_refined_edges_sag_no_further_than_the_tolerance():
     coarse = reconstruct(sample.points, refine_levels=0)
     noise = coarse.parameters.noise
     unrefined = Mesh(vertices=coarse.mesh.vertices - coarse.offset, faces=coarse.mesh.faces)
-    assert sagging_edges(unrefined, coarse.jets, noise=noise).mean() > 0.5
+    assert sagging_edges(unrefined, coarse.surface, noise=noise).mean() > 0.5
     refined = reconstruct(sample.points)
     assert 1 <= refined.stats["refine_levels"] <= MAX_LEVELS
     final = Mesh(vertices=refined.mesh.vertices - refined.offset, faces=refined.mesh.faces)
-    assert not sagging_edges(final, refined.jets, noise=noise).any()
+    assert not sagging_edges(final, refined.surface, noise=noise).any()
 
 
 def test_given_support_is_used_and_reported():
     points = sample_sphere(4_000, radius=1.0, noise=0.01, rng=1).points
     result = reconstruct(points, fit_support=0.3)
-    assert np.all(result.jets.radii <= 0.3 + 1e-12)
-    assert "given" in result.jets.notes[0]
-    assert result.stats["fit_support"] == pytest.approx(np.median(result.jets.radii))
+    assert np.all(result.surface.radii <= 0.3 + 1e-12)
+    assert "given" in result.surface.notes[0]
+    assert result.stats["fit_support"] == pytest.approx(np.median(result.surface.radii))
 
 
 def test_fit_jets_recovers_a_known_quadric(rng):

@@ -72,7 +72,7 @@ def test_jets_near_a_second_wall_fit_their_own():
     assert 2.5 * result.parameters.rho_delta < gap < 4.0 * result.parameters.rho_delta
     inner = np.all((points[:, :2] > 0.1) & (points[:, :2] < 0.5), axis=1)
     on_wall = np.c_[points[inner, :2], np.where(points[inner, 2] > gap / 2, gap, 0.0)]
-    values, _ = evaluate_jets(result.jets, on_wall - result.offset)
+    values, _ = evaluate_jets(result.surface, on_wall - result.offset)
     for wall in (on_wall[:, 2] == 0.0, on_wall[:, 2] == gap):
         assert abs(np.median(values[wall])) < 3e-4  # metres: each wall where it is
     # and the mesh covers both walls: true points on them lie near it

@@ -5,13 +5,12 @@ from __future__ import annotations
 from dataclasses import dataclass, field, fields, replace
 
 from .errors import InputError
+from .surface import SURFACES
 
-__all__ = ["CONTOURS", "RIMS", "SURFACES", "ReconstructionConfig"]
+__all__ = ["CONTOURS", "RIMS", "ReconstructionConfig"]
 
 #: The contouring methods of phase 1.
 CONTOURS = ("marching", "cubes")
-#: The surface functions of phase 1: blended jets, or Hoppe's nearest tangent plane.
-SURFACES = ("jets", "planes")
 #: Where open boundaries lie: cut at the edge of the data, or at whole lattice cubes.
 RIMS = ("data", "cubes")
 
@@ -101,7 +100,7 @@ class ReconstructionConfig:
         if self.contour not in CONTOURS:
             raise InputError(f"contour must be one of {CONTOURS}; got {self.contour!r}")
         if self.surface not in SURFACES:
-            raise InputError(f"surface must be one of {SURFACES}; got {self.surface!r}")
+            raise InputError(f"surface must be one of {tuple(SURFACES)}; got {self.surface!r}")
         if not isinstance(self.gap_bridges, bool):
             raise InputError(f"gap_bridges must be True or False; got {self.gap_bridges!r}")
         if self.rim not in RIMS:

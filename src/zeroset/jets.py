@@ -30,7 +30,8 @@ the support shrinks to where the detail's error and the jet's variance balance.
 
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import dataclass, field, replace
+from functools import cached_property
 
 import numpy as np
 
@@ -40,16 +41,16 @@ from ._kernels.normals import centroid_covariance
 from ._validate import as_points, positive
 from .neighbours import build_tree
 from .prepare import cell_labels, group_means
-from .types import Jets
+from .surface import Surface
+from .types import Frozen
 
 __all__ = [
     "REACH",
-    "concatenate_jets",
+    "Jets",
     "evaluate_jets",
     "fit_jets",
     "orient_jets",
     "quadric_noise",
-    "select_jets",
 ]
 
 #: Variance of a jet's value at its centre times (points in the support) / sigma^2, for the
@@ -92,6 +93,116 @@ ORIENT_K = 8
 #: Every value of the surface lies within this many rho+delta of all the points it
 #: depends on: blend (half a support), support, the pilots that set it and the feet.
 REACH = 16.0
+
+
+@dataclass(frozen=True, eq=False)
+class Jets(Frozen, Surface):
+    """Oriented quadric height fits (jets) whose blend is the surface (`evaluate_jets`).
+
+    Jet j is the height function ``h(u, v) = a0 + a1 u + a2 v + a3 u^2 + a4 u v + a5 v^2``
+    plus a quartic over the frame at ``centres[j]`` whose rows are e1, e2 and the normal n:
+    a point x has ``u = (x - c) . e1``, ``v = (x - c) . e2`` and height ``w = (x - c) . n``.
+
+    Attributes
+    ----------
+    centres : (J, 3) float64
+        Weighted centroid of each jet's support.
+    frames : (J, 3, 3) float64
+        Rows e1, e2, n; n is oriented like the tangent planes.
+    coefficients : (J, 10) float64
+        a0 ... a5, in data units, then the quartic's k1, k2, cos t, sin t
+        (`zeroset._kernels.jets.COEFFICIENTS`).
+    radii : (J,) float64
+        Support radius of each jet, in data units.
+    notes : tuple of str
+        How the supports were chosen.
+    """
+
+    reach = REACH
+    smooth = True
+
+    centres: np.ndarray
+    frames: np.ndarray
+    coefficients: np.ndarray
+    radii: np.ndarray
+    notes: tuple[str, ...] = field(default=())
+
+    @property
+    def curvature(self) -> np.ndarray:
+        """(J,) largest absolute principal curvature, in 1 / data units: the largest
+        absolute eigenvalue of the Hessian [[2 a3, a4], [a4, 2 a5]]."""
+        a3, a4, a5 = self.coefficients[:, 3], self.coefficients[:, 4], self.coefficients[:, 5]
+        return np.abs(a3 + a5) + np.sqrt((a3 - a5) ** 2 + a4**2)
+
+    @property
+    def support(self) -> float:
+        """Median support radius, in data units."""
+        return float(np.median(self.radii))
+
+    @cached_property
+    def tree(self):
+        """The k-d tree of `centres`, built once."""
+        return build_tree(self.centres)
+
+    @classmethod
+    def fit(cls, points, owner, planes, parameters, config) -> Jets:
+        """`fit_jets` on the points whose cell was kept, with their cells' planes, the
+        noise of `zeroset.types.Parameters.quadric_noise` and the density its spacing
+        implies."""
+        rows = owner >= 0
+        return fit_jets(
+            points[rows],
+            owner[rows],
+            planes.centroids,
+            planes.normals,
+            noise=parameters.quadric_noise,
+            rho_delta=parameters.rho_delta,
+            support=config.fit_support,
+            density=(config.radius_k + 1) / (np.pi * parameters.spacing**2),
+        )
+
+    def oriented(self, centroids, normals, *, tree=None) -> Jets:
+        """`orient_jets`."""
+        return orient_jets(self, centroids, normals, tree=tree)
+
+    def evaluate(self, positions) -> tuple[np.ndarray, np.ndarray]:
+        """`evaluate_jets`."""
+        return evaluate_jets(self, positions)
+
+    def curvature_at(self, positions) -> np.ndarray:
+        """The curvature of the jet nearest each position (M, 3)."""
+        return self.curvature[self.tree.query(positions, workers=-1)[1]]
+
+    def select(self, rows) -> Jets:
+        """The jets of `rows` (a mask or indices)."""
+        return replace(
+            self,
+            centres=self.centres[rows],
+            frames=self.frames[rows],
+            coefficients=self.coefficients[rows],
+            radii=self.radii[rows],
+        )
+
+    @classmethod
+    def concatenate(cls, parts: list[Jets]) -> Jets:
+        """One Jets of several, in order; the notes are the first part's."""
+        return cls(
+            centres=np.concatenate([j.centres for j in parts]),
+            frames=np.concatenate([j.frames for j in parts]),
+            coefficients=np.concatenate([j.coefficients for j in parts]),
+            radii=np.concatenate([j.radii for j in parts]),
+            notes=parts[0].notes,
+        )
+
+    def describe(self) -> dict:
+        """How many jets make the surface, their median support and how it was chosen."""
+        notes = "; ".join(self.notes)
+        return {
+            "surface_function": f"blended jets: {self.centres.shape[0]:,} quadric fits, {notes}",
+            "jets": self.centres.shape[0],
+            "fit_support": self.support,
+            "fit_notes": notes,
+        }
 
 
 def fit_jets(
@@ -292,28 +403,6 @@ def _jets(fit, note: str) -> Jets:
     )
 
 
-def select_jets(jets: Jets, rows) -> Jets:
-    """The jets of `rows` (a mask or indices)."""
-    return replace(
-        jets,
-        centres=jets.centres[rows],
-        frames=jets.frames[rows],
-        coefficients=jets.coefficients[rows],
-        radii=jets.radii[rows],
-    )
-
-
-def concatenate_jets(parts: list[Jets]) -> Jets:
-    """One Jets of several, in order; the notes are the first part's."""
-    return Jets(
-        centres=np.concatenate([j.centres for j in parts]),
-        frames=np.concatenate([j.frames for j in parts]),
-        coefficients=np.concatenate([j.coefficients for j in parts]),
-        radii=np.concatenate([j.radii for j in parts]),
-        notes=parts[0].notes,
-    )
-
-
 def _own_sheet(centres, cells, indices, distances, pilots: Jets, pilot_tree, margin: float):
     """The neighbour `cells` of each of `centres` (R, 3) (`indices`, `distances` (R, K), by
     distance) on its own sheet first, by distance; those on another sheet after them, at an
@@ -404,7 +493,7 @@ def evaluate_jets(jets: Jets, positions, *, k: int = BLEND_K) -> tuple[np.ndarra
     if positions.shape[0] == 0:
         return np.zeros(0), np.zeros((0, 3))
     kk = min(k + 1, jets.centres.shape[0])
-    distances, indices = build_tree(jets.centres).query(positions, k=kk, workers=-1)
+    distances, indices = jets.tree.query(positions, k=kk, workers=-1)
     distances, indices = distances.reshape(-1, kk), indices.reshape(-1, kk)
     return blend_rows(positions, indices, distances, jets.centres, jets.frames, jets.coefficients)
 

@@ -1,16 +1,21 @@
-"""Tangent plane of every point: neighbourhood centroid and PCA normal (Hoppe et al. 1992, §3.2)."""
+"""Tangent plane of every point: neighbourhood centroid and PCA normal (Hoppe et al. 1992,
+§3.2), and the signed distance to the nearest one as a local surface (§3.4)."""
 
 from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
 from ._kernels.linalg import eigh_rows
 from ._kernels.normals import centroid_covariance
 from ._validate import as_points, positive, positive_per_row
-from .neighbours import knn
-from .types import Neighbourhoods, TangentPlanes
+from .neighbours import build_tree, knn
+from .surface import Surface
+from .types import Frozen, Neighbourhoods, TangentPlanes
 
-__all__ = ["tangent_planes"]
+__all__ = ["NearestPlanes", "tangent_planes"]
 
 
 def tangent_planes(
@@ -81,3 +86,68 @@ def tangent_planes(
         eigenvalues=np.maximum(eigenvalues, 0.0),
         neighbour_count=counts,
     )
+
+
+@dataclass(frozen=True, eq=False)
+class NearestPlanes(Frozen, Surface):
+    """Hoppe's surface: ``f(p) = (p - o_i) . n_i`` with o_i the centroid nearest to p.
+
+    Flat and only piecewise continuous, it has no curvature to size cells by and nothing to
+    project vertices onto.
+
+    Attributes
+    ----------
+    centres : (M, 3) float64
+        The planes' centroids o_i.
+    normals : (M, 3) float64
+        Their unit normals n_i, oriented once `oriented` has been called.
+    """
+
+    #: The nearest plane lies within a radius of a defined value.
+    reach = 1.0
+    smooth = False
+
+    centres: np.ndarray
+    normals: np.ndarray
+
+    @cached_property
+    def tree(self):
+        """The k-d tree of `centres`, built once."""
+        return build_tree(self.centres)
+
+    @classmethod
+    def fit(cls, points, owner, planes: TangentPlanes, parameters, config) -> NearestPlanes:
+        """The tangent planes as they are."""
+        return cls(centres=planes.centroids, normals=planes.normals)
+
+    def oriented(self, centroids, normals, *, tree=None) -> NearestPlanes:
+        """Each plane with the normal of the oriented plane at its centroid."""
+        tree = build_tree(centroids) if tree is None else tree
+        return NearestPlanes(self.centres, np.asarray(normals)[tree.query(self.centres)[1]])
+
+    def evaluate(self, positions) -> tuple[np.ndarray, np.ndarray]:
+        """Distance to the nearest plane, and its normal."""
+        positions = as_points(positions, "positions", min_rows=0)
+        nearest = self.tree.query(positions, workers=-1)[1]
+        normals = self.normals[nearest]
+        values = np.einsum("ij,ij->i", positions - self.centres[nearest], normals)
+        return values, normals
+
+    def curvature_at(self, positions) -> np.ndarray:
+        """Zero: a plane is flat."""
+        return np.zeros(np.shape(positions)[0])
+
+    def select(self, rows) -> NearestPlanes:
+        """The planes of `rows` (a mask or indices)."""
+        return NearestPlanes(self.centres[rows], self.normals[rows])
+
+    @classmethod
+    def concatenate(cls, parts: list[NearestPlanes]) -> NearestPlanes:
+        """One set of planes of several, in order."""
+        return cls(
+            np.concatenate([p.centres for p in parts]), np.concatenate([p.normals for p in parts])
+        )
+
+    def describe(self) -> dict:
+        """The surface function's name."""
+        return {"surface_function": "nearest tangent plane (Hoppe 1992)"}

@@ -20,14 +20,14 @@ from .stages import (
     finish,
     fit,
     fit_stats,
-    jet_stats,
     mesh_stats,
     optimize_surface,
     prepare_points,
     stage_names,
     warn_surface_changes,
 )
-from .types import DistanceField, Jets, Mesh, Orientation, Parameters, TangentPlanes
+from .surface import Surface
+from .types import DistanceField, Mesh, Orientation, Parameters, TangentPlanes
 
 __all__ = ["Reconstruction", "reconstruct"]
 
@@ -51,8 +51,9 @@ class Reconstruction:
     parameters : Parameters
     planes : TangentPlanes
     orientation : Orientation
-    jets : Jets or None
-        The oriented local fits whose blend is the surface; None for ``surface="planes"``.
+    surface : Surface
+        The oriented local surface whose zero set was contoured (`zeroset.surface`; the
+        blended `zeroset.jets.Jets` by default), in the local frame.
     field : DistanceField
     config : ReconstructionConfig
     initial_mesh : Mesh
@@ -71,7 +72,7 @@ class Reconstruction:
     parameters: Parameters
     planes: TangentPlanes
     orientation: Orientation
-    jets: Jets | None
+    surface: Surface
     field: DistanceField
     config: ReconstructionConfig
     initial_mesh: Mesh
@@ -138,12 +139,12 @@ def reconstruct(
         parameters = stages.run("parameters", choose_parameters, cloud.local, config, cloud.tree)
         fitted = fit(cloud, parameters, config, stages)
         normals = fitted.orientation.normals
-        field_, bridges, jets = stages.run(
+        field_, bridges, surface = stages.run(
             "signed distance", distance_field, cloud, fitted, normals, parameters, config
         )
         mesh = stages.run("contour", contour, field_, fitted, normals, parameters, config)
         support = data_support(fitted, bridges, parameters)
-        first = finish(mesh, support, jets, parameters, config, stages)
+        first = finish(mesh, support, surface, parameters, config, stages)
         if optimize:
             optimization = stages.run(
                 OPTIMIZE_STAGE, optimize_surface, first, points, cloud.offset, config, progress
@@ -151,7 +152,7 @@ def reconstruct(
     initial_mesh = first.translated(cloud.offset)
     mesh = initial_mesh if optimization is None else optimization.mesh.translated(cloud.offset)
     stats = {"input_points": points.shape[0], **stages.counts}
-    stats.update(fit_stats(fitted) | jet_stats(jets) | mesh_stats(mesh))
+    stats.update(fit_stats(fitted) | surface.describe() | mesh_stats(mesh))
     warn_surface_changes(stats, config)
     return Reconstruction(
         mesh=mesh,
@@ -162,7 +163,7 @@ def reconstruct(
         parameters=parameters,
         planes=fitted.planes,
         orientation=fitted.orientation,
-        jets=jets,
+        surface=surface,
         field=field_,
         config=config,
         stats=stats,

@@ -3,7 +3,8 @@
 Marching cubes puts each vertex where the field, interpolated linearly along a lattice
 edge, changes sign, and its flat triangles cut the chords of a curved surface: a convex
 surface comes out too small by up to L^2 kappa / 8 for edges of length L. Projecting the
-vertices onto the zero set of the blended jets (`zeroset.jets`) removes the first error;
+vertices onto the zero set of a smooth local surface (`zeroset.surface`, the blended jets
+by default) removes the first error;
 splitting the edges that sag too far and projecting the new vertices removes the second,
 only where the surface bends. Topology and boundaries are kept: a split
 edge keeps its faces, a boundary edge stays a boundary.
@@ -13,10 +14,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .jets import evaluate_jets
-from .neighbours import build_tree
+from .surface import Surface
 from .topology import face_area_vectors, undirected_edges, undo_turned_faces
-from .types import Jets, Mesh
+from .types import Mesh
 
 __all__ = ["project_to_surface", "refine_mesh", "sag_tolerance", "sagging_edges", "split_edges"]
 
@@ -38,17 +38,17 @@ def sag_tolerance(curvature, noise: float) -> np.ndarray:
     return np.maximum(CHORD_RELATIVE / kappa, CHORD_NOISE * noise)
 
 
-def project_to_surface(mesh: Mesh, jets: Jets, *, steps: int = PROJECTION_STEPS):
-    """Move every vertex onto the zero set of the jets; no triangle may turn over.
+def project_to_surface(mesh: Mesh, surface: Surface, *, steps: int = PROJECTION_STEPS):
+    """Move every vertex onto the zero set of `surface`; no triangle may turn over.
 
-    Each step is ``x <- x - f(x) g / |g|^2`` with f the blended distance and g its
+    Each step is ``x <- x - f(x) g / |g|^2`` with f the surface's distance and g its
     gradient. A triangle whose normal turns by more than 90 degrees brings its three
     vertices back to where they were before the step; this repeats until no triangle turns.
 
     Parameters
     ----------
     mesh : Mesh
-    jets : Jets
+    surface : Surface
 
     Returns
     -------
@@ -62,7 +62,7 @@ def project_to_surface(mesh: Mesh, jets: Jets, *, steps: int = PROJECTION_STEPS)
     before = face_area_vectors(vertices, faces)
     held = np.zeros(vertices.shape[0], dtype=bool)
     for _ in range(steps):
-        values, gradients = evaluate_jets(jets, vertices)
+        values, gradients = surface.evaluate(vertices)
         squared = np.einsum("ij,ij->i", gradients, gradients)
         step = np.where(squared > 0.25, values / np.maximum(squared, 0.25), 0.0)
         moved = vertices - step[:, None] * gradients
@@ -124,42 +124,39 @@ def split_edges(mesh: Mesh, marked: np.ndarray) -> Mesh:
     return Mesh(vertices=vertices, faces=np.concatenate(pieces))
 
 
-def sagging_edges(mesh: Mesh, jets: Jets, *, noise: float, tree=None) -> np.ndarray:
+def sagging_edges(mesh: Mesh, surface: Surface, *, noise: float) -> np.ndarray:
     """(E,) bool: the edges of `zeroset.topology.undirected_edges` whose chords sag too far.
 
-    A chord of length L sags ``L^2 kappa / 8``, with kappa the curvature of the jet nearest
-    its midpoint; it sags too far beyond `sag_tolerance`.
+    A chord of length L sags ``L^2 kappa / 8``, with kappa the curvature of `surface` at its
+    midpoint (`zeroset.surface.Surface.curvature_at`); it sags too far beyond
+    `sag_tolerance`.
 
     Parameters
     ----------
     mesh : Mesh
-    jets : Jets
+    surface : Surface
     noise : float
         Noise level sigma of one point, in data units.
-    tree : scipy.spatial.cKDTree, optional
-        Over ``jets.centres``; built when not given.
     """
     ends = mesh.vertices[undirected_edges(mesh.faces)[0]]
     length = np.linalg.norm(ends[:, 0] - ends[:, 1], axis=1)
-    _, nearest = (build_tree(jets.centres) if tree is None else tree).query(
-        ends.mean(axis=1), workers=-1
-    )
-    kappa = np.maximum(jets.curvature[nearest], 1e-300)
+    kappa = np.maximum(surface.curvature_at(ends.mean(axis=1)), 1e-300)
     return length**2 * kappa / 8.0 > sag_tolerance(kappa, noise)
 
 
-def refine_mesh(mesh: Mesh, jets: Jets, *, noise: float, levels: int | None = None):
+def refine_mesh(mesh: Mesh, surface: Surface, *, noise: float, levels: int | None = None):
     """Project the vertices, then split and project the edges whose chords sag too far.
 
     A chord of length L on a surface of curvature kappa sags ``L^2 kappa / 8`` below it.
     An edge is split while that exceeds 0.01 % of the radius ``1 / kappa`` or 10 % of the
-    `noise`, whichever is larger, with kappa the curvature of the jet nearest the edge's
+    `noise`, whichever is larger, with kappa the surface's curvature at the edge's
     midpoint (`sagging_edges`); at most three times.
 
     Parameters
     ----------
     mesh : Mesh
-    jets : Jets
+    surface : Surface
+        Smooth (``surface.smooth``).
     noise : float
         Noise level sigma of one point, in data units.
     levels : int, optional
@@ -172,16 +169,15 @@ def refine_mesh(mesh: Mesh, jets: Jets, *, noise: float, levels: int | None = No
         ``refine_levels`` (rounds of splits), ``edges_split`` and ``projection_held``
         (vertices held back so that no triangle turned over).
     """
-    mesh, held = project_to_surface(mesh, jets)
+    mesh, held = project_to_surface(mesh, surface)
     rounds, split = 0, 0
-    tree = build_tree(jets.centres)
     for _ in range(MAX_LEVELS if levels is None else levels):
         if levels is None:
-            marked = sagging_edges(mesh, jets, noise=noise, tree=tree)
+            marked = sagging_edges(mesh, surface, noise=noise)
         else:
             marked = np.ones(undirected_edges(mesh.faces)[0].shape[0], dtype=bool)
         if not marked.any():
             break
-        mesh, more = project_to_surface(split_edges(mesh, marked), jets)
+        mesh, more = project_to_surface(split_edges(mesh, marked), surface)
         rounds, split, held = rounds + 1, split + int(np.count_nonzero(marked)), held + more
     return mesh, {"refine_levels": rounds, "edges_split": split, "projection_held": held}

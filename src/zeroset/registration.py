@@ -24,7 +24,7 @@ from ._rigid import transform
 from ._validate import as_points, as_poses, positive
 from .errors import InputError
 from .neighbours import build_tree
-from .types import _Frozen
+from .types import Frozen
 
 __all__ = ["Registration", "register_scans"]
 
@@ -58,7 +58,7 @@ _SEED = 0
 
 
 @dataclass(frozen=True, eq=False)
-class Registration(_Frozen):
+class Registration(Frozen):
     """Refined poses of S scans and how well the scans fit together before and after.
 
     A pose maps a scan's own coordinates to the world: ``p_world = R @ p + t`` with

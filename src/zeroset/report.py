@@ -190,7 +190,7 @@ def format_report(report: dict) -> str:
         *_registration_lines(report.get("registration")),
         *(f"parameter   {note}" for note in report["parameters"]["notes"]),
         *_density_lines(stats),
-        *_surface_lines(report["config"].get("surface", "jets"), stats),
+        *_surface_lines(stats),
         *_tile_lines(stats),
         f"orientation {stats['orientation_components']} component(s)"
         + (
@@ -227,13 +227,10 @@ def format_report(report: dict) -> str:
     return "\n".join(lines)
 
 
-def _surface_lines(surface: str, stats: dict) -> list[str]:
-    """Which surface function was contoured; for the jets, their support and refinement."""
-    if surface == "planes" or "jets" not in stats:
-        return ["surface     nearest tangent plane (Hoppe 1992)"]
-    lines = [
-        f"surface     blended jets: {stats['jets']:,} quadric fits, {stats['fit_notes']}",
-    ]
+def _surface_lines(stats: dict) -> list[str]:
+    """Which surface function was contoured (`zeroset.surface.Surface.describe`), and how
+    the vertices were refined onto it."""
+    lines = [f"surface     {stats['surface_function']}"]
     if "refine_levels" in stats:
         lines.append(
             f"refine      vertices projected onto the surface ({stats['projection_held']:,} held "

@@ -41,7 +41,6 @@ from .density import (
 )
 from .distance import signed_distance
 from .errors import InputError, ReconstructionError, SurfaceWarning
-from .jets import evaluate_jets, fit_jets, orient_jets
 from .neighbours import build_tree, knn, restrict, spatial_order
 from .normals import tangent_planes
 from .octree import cell_sizes
@@ -64,7 +63,8 @@ from .repair import (
     split_nonmanifold_vertices,
 )
 from .rim import no_empty_ball, trim_to_data
-from .types import DistanceField, Jets, Mesh, Neighbourhoods, Orientation, Parameters, TangentPlanes
+from .surface import Surface, surface_kind
+from .types import DistanceField, Mesh, Neighbourhoods, Orientation, Parameters, TangentPlanes
 
 __all__ = [
     "STAGES",
@@ -86,7 +86,7 @@ __all__ = [
     "drop_sparse_points",
     "fit_tangent_planes",
     "orient",
-    "fit_local_surfaces",
+    "fit_local_surface",
     "distance_field",
     "contour",
     "point_cell_sizes",
@@ -96,7 +96,6 @@ __all__ = [
     "refine",
     "optimize_surface",
     "fit_stats",
-    "jet_stats",
     "mesh_stats",
     "surface_changes",
     "warn_surface_changes",
@@ -118,8 +117,8 @@ STAGES = (
     "rim",
     "refine",
 )
-#: Stages that run only for the blended-jets surface, and only for rims at the data.
-JET_STAGES = ("local fits", "refine")
+#: Stages that run only for a smooth local surface, and only for rims at the data.
+SMOOTH_STAGES = ("refine",)
 RIM_STAGES = ("rim",)
 OPTIMIZE_STAGE = "optimize"
 #: Gap-bridge points, as a share of the fitted points, from which a run warns of them (an
@@ -145,11 +144,11 @@ MIN_EXTENT = 1e-100
 
 def stage_names(config: ReconstructionConfig, optimize: bool = False) -> tuple[str, ...]:
     """The stages a run of `config` goes through, in order."""
+    smooth = surface_kind(config.surface).smooth
     names = tuple(
         s
         for s in STAGES
-        if (config.surface == "jets" or s not in JET_STAGES)
-        and (config.rim == "data" or s not in RIM_STAGES)
+        if (smooth or s not in SMOOTH_STAGES) and (config.rim == "data" or s not in RIM_STAGES)
     )
     return names + ((OPTIMIZE_STAGE,) if optimize else ())
 
@@ -169,28 +168,25 @@ def fit(cloud: LocalCloud, parameters: Parameters, config, stages: Stages) -> Fi
     orientation = stages.run(
         "orientation", orient, planes, neighbours, density, cells.viewpoints, config
     )
-    jets = None
-    if config.surface == "jets":
-        jets = stages.run(
-            "local fits", fit_local_surfaces, local, cells, planes, parameters, config
-        )
+    surface = stages.run("local fits", fit_local_surface, local, cells, planes, parameters, config)
     return FittedPlanes(
         points=cells.points,
         density=density,
         planes=planes,
         orientation=orientation,
-        jets=jets,
+        surface=surface,
     )
 
 
-def finish(mesh: Mesh, support, jets, parameters: Parameters, config, stages: Stages) -> Mesh:
+def finish(mesh: Mesh, support, surface: Surface, parameters: Parameters, config, stages: Stages):
     """Stages "repair", "rim" and "refine" on a contoured mesh in the local frame, with the
-    `DataSupport` the rim is cut back to and the oriented `jets` (or None) it is refined on."""
+    `DataSupport` the rim is cut back to and the oriented `surface` it is refined on (where
+    it is smooth)."""
     mesh = stages.run("repair", repair, mesh, parameters, config)
     if config.rim == "data":
         mesh = stages.run("rim", trim_rim, mesh, support, parameters, config)
-    if jets is not None:
-        mesh = stages.run("refine", refine, mesh, jets, parameters, config)
+    if surface.smooth:
+        mesh = stages.run("refine", refine, mesh, surface, parameters, config)
     return mesh
 
 
@@ -278,15 +274,15 @@ class FittedPlanes:
         Their radii, sectors and neighbourhoods' extent, and the range-noise model.
     planes : TangentPlanes
     orientation : Orientation
-    jets : Jets or None
-        The local fits, not yet oriented; None for ``surface="planes"``.
+    surface : Surface
+        The local surface (``config.surface``), not yet oriented.
     """
 
     points: np.ndarray
     density: Density
     planes: TangentPlanes
     orientation: Orientation
-    jets: Jets | None = None
+    surface: Surface
 
     @cached_property
     def tree(self) -> cKDTree:
@@ -502,35 +498,22 @@ def orient(planes: TangentPlanes, neighbours, density: Density, viewpoints, conf
     return orientation, counts
 
 
-def fit_local_surfaces(local, cells: Cells, planes, parameters: Parameters, config):
-    """Stage "local fits": quadric jets over every point (N, 3) of the cells kept, each with
-    its cell's plane (`zeroset.jets.fit_jets`)."""
-    rows = cells.cell >= 0
-    jets = fit_jets(
-        local[rows],
-        cells.cell[rows],
-        planes.centroids,
-        planes.normals,
-        noise=parameters.quadric_noise,
-        rho_delta=parameters.rho_delta,
-        support=config.fit_support,
-        density=(config.radius_k + 1) / (np.pi * parameters.spacing**2),
-    )
-    return jets, {}
+def fit_local_surface(local, cells: Cells, planes, parameters: Parameters, config):
+    """Stage "local fits": the local surface of ``config.surface`` (`zeroset.surface`) over
+    every point (N, 3), each in its cell's plane."""
+    return surface_kind(config.surface).fit(local, cells.cell, planes, parameters, config), {}
 
 
 def distance_field(cloud: LocalCloud, fitted: FittedPlanes, normals, parameters, config):
     """Stage "signed distance": the field of the planes of `fitted` turned by `normals`
-    around the points of `cloud`, the gap bridges (B, 3), and the jets of `fitted` turned
-    like the nearest planes (None for ``surface="planes"``), which value the field.
+    around the points of `cloud`, the gap bridges (B, 3), and the local surface of `fitted`
+    turned like the nearest planes, which values the field.
 
     Without ``config.gap_bridges`` there are none. For ``config.rim == "data"`` the field
     reaches one cube further than the points' radii, so that the cubes cover the edge of
     the data wherever the lattice lies; the rim is then cut back to that edge (`trim_rim`).
     """
-    jets = None
-    if fitted.jets is not None:
-        jets = orient_jets(fitted.jets, fitted.planes.centroids, normals, tree=fitted.centroid_tree)
+    surface = fitted.surface.oriented(fitted.planes.centroids, normals, tree=fitted.centroid_tree)
     bridges = np.zeros((0, 3))
     if config.gap_bridges:
         bridges = gap_bridges(
@@ -548,7 +531,7 @@ def distance_field(cloud: LocalCloud, fitted: FittedPlanes, normals, parameters,
         radius=fitted.density.radii + (parameters.cube_size if config.rim == "data" else 0.0),
         bridges=bridges,
         bridge_reach=BRIDGE_REACH * parameters.rho_delta,
-        surface=None if jets is None else (lambda x: evaluate_jets(jets, x)[0]),
+        surface=lambda x: surface.evaluate(x)[0],
         tree=cloud.tree,
         centroid_tree=fitted.centroid_tree,
     )
@@ -557,16 +540,16 @@ def distance_field(cloud: LocalCloud, fitted: FittedPlanes, normals, parameters,
         "grid_vertices": int(field_.values.size),
         "undefined_grid_vertices": int(np.count_nonzero(np.isnan(field_.values))),
     }
-    return (field_, bridges, jets), counts
+    return (field_, bridges, surface), counts
 
 
 def contour(field_: DistanceField, fitted: FittedPlanes, normals, parameters, config):
     """Stage "contour": marching cubes, or the Method of Cubes on the points of `fitted`,
     in octree cells of the sizes the points ask for (`point_cell_sizes`; one cube
-    everywhere for ``surface="planes"``, which has no local fits)."""
+    everywhere where the local surface is not smooth)."""
     if config.contour != "cubes":
         return marching_cubes(field_), {}
-    sizes = None if fitted.jets is None else point_cell_sizes(fitted, parameters, config)
+    sizes = point_cell_sizes(fitted, parameters, config) if fitted.surface.smooth else None
     mesh, level, counts = adaptive_cubes(
         field_, fitted.points, fitted.planes.centroids, normals, sizes=sizes, tree=fitted.tree
     )
@@ -578,10 +561,9 @@ def contour(field_: DistanceField, fitted: FittedPlanes, normals, parameters, co
 
 def point_cell_sizes(fitted: FittedPlanes, parameters: Parameters, config) -> np.ndarray:
     """(N,) cell side each point of `fitted` asks for (`zeroset.octree.cell_sizes`), with
-    the curvature of its nearest local fit."""
-    nearest = build_tree(fitted.jets.centres).query(fitted.points, workers=-1)[1]
+    the curvature of the local surface there."""
     return cell_sizes(
-        fitted.jets.curvature[nearest],
+        fitted.surface.curvature_at(fitted.points),
         fitted.density.spacing,
         noise=parameters.noise,
         noise_factor=config.noise_factor,
@@ -659,9 +641,9 @@ def trim_rim(mesh: Mesh, support: DataSupport, parameters: Parameters, config):
     return mesh, counts
 
 
-def refine(mesh: Mesh, jets: Jets, parameters: Parameters, config) -> tuple[Mesh, dict]:
-    """Stage "refine": move the vertices onto the blend of the `jets` (`zeroset.refine`)."""
-    return refine_mesh(mesh, jets, noise=parameters.noise, levels=config.refine_levels)
+def refine(mesh: Mesh, surface: Surface, parameters: Parameters, config) -> tuple[Mesh, dict]:
+    """Stage "refine": move the vertices onto the smooth `surface` (`zeroset.refine`)."""
+    return refine_mesh(mesh, surface, noise=parameters.noise, levels=config.refine_levels)
 
 
 def optimize_surface(mesh: Mesh, points, offset, config, progress: bool):
@@ -695,17 +677,6 @@ def fit_stats(fitted: FittedPlanes) -> dict:
     if fitted.orientation.disagreement is not None:
         stats["orientation_disagreement"] = fitted.orientation.disagreement
     return stats
-
-
-def jet_stats(jets: Jets | None) -> dict:
-    """How many local fits make the surface, their support and notes; empty without jets."""
-    if jets is None:
-        return {}
-    return {
-        "jets": jets.centres.shape[0],
-        "fit_support": jets.support,
-        "fit_notes": "; ".join(jets.notes),
-    }
 
 
 def mesh_stats(mesh: Mesh) -> dict:

@@ -27,7 +27,6 @@ from .config import ReconstructionConfig
 from .contour import keyed_marching_cubes
 from .density import RADIUS_CAP
 from .errors import InputError, ReconstructionError, SurfaceWarning
-from .jets import REACH, concatenate_jets, select_jets
 from .neighbours import build_tree, spatial_order
 from .orientation import agree_parts, part_extremes
 from .parameters import neighbours_read
@@ -42,13 +41,13 @@ from .stages import (
     distance_field,
     finish,
     fit,
-    jet_stats,
     local_viewpoints,
     mesh_stats,
     warn_surface_changes,
 )
+from .surface import Surface, surface_kind
 from .topology import is_consistently_oriented, is_edge_manifold
-from .types import Jets, Mesh, Parameters
+from .types import Mesh, Parameters
 
 __all__ = [
     "TiledReconstruction",
@@ -177,8 +176,8 @@ class Piece:
         Global key of the cube of each face.
     support : DataSupport
         The data support of the points in its cubes.
-    jets : Jets or None
-        The oriented jets centred in its cubes.
+    surface : Surface or None
+        The oriented local fits centred in its cubes; None for a tile with no surface.
     counts : dict
         Its stages' counts.
     peak_mib : float or None
@@ -192,7 +191,7 @@ class Piece:
     faces: np.ndarray
     cube_keys: np.ndarray
     support: DataSupport
-    jets: Jets | None
+    surface: Surface | None
     counts: dict
     peak_mib: float | None
     worker: str
@@ -212,7 +211,7 @@ class Piece:
                 measured=np.zeros(0, bool),
                 planes=np.zeros((0, 3)),
             ),
-            jets=None,
+            surface=None,
             counts={},
             peak_mib=peak_mib,
             worker=worker,
@@ -395,8 +394,8 @@ def reconstruct_tiled(
         estimate = _estimate_whole if n_points <= WHOLE_CLOUD_POINTS else _estimate_sampled
         parameters = client.submit(estimate, source, n_points, offset, config, pure=False).result()
         timings["parameters"] = time.perf_counter() - start
-    # The blended jets reach further than the planes: see zeroset.jets.REACH.
-    reach = max(HALO_RADII, REACH) if config.surface == "jets" else HALO_RADII
+    # A local surface may reach further than the planes (zeroset.surface.Surface.reach).
+    reach = max(HALO_RADII, surface_kind(config.surface).reach)
     plan = plan_tiles(low, high, offset, parameters, counts, halo_radii=reach)
 
     start = time.perf_counter()
@@ -456,14 +455,14 @@ def reconstruct_tiled(
             "oriented: their seams disagree; run without tiles, or with fewer"
         )
     timings["weld"] = time.perf_counter() - start
-    jets = _owned_jets(pieces)
+    surface = _owned_surface(pieces)
     stages = Stages((), show=False)
     support = DataSupport.concatenate([piece.support for piece in pieces])
-    mesh = finish(mesh, support, jets, parameters, config, stages)
+    mesh = finish(mesh, support, surface, parameters, config, stages)
     timings.update(stages.timings)
     add_counts(stats, stages.counts)
     mesh = mesh.translated(offset)
-    stats.update(jet_stats(jets) | mesh_stats(mesh))
+    stats.update(surface.describe() | mesh_stats(mesh))
     warn_surface_changes(stats, config)
     peaks: dict = {}
     for piece in pieces:
@@ -731,21 +730,19 @@ def _contour_tile(
         sign[component] = flip
     normals = fitted.orientation.normals * sign[fitted.orientation.component][:, None]
     stages = Stages((), show=False)
-    field_, bridges, jets = stages.run(
+    field_, bridges, surface = stages.run(
         "signed distance", distance_field, fit.cloud, fitted, normals, parameters, config
     )
     edge_keys, vertices, faces, cube_keys = keyed_marching_cubes(field_, owned=fit.tile.owned)
     support = data_support(fitted, bridges, parameters)
     lo, hi = fit.tile.owned
-    if jets is not None:
-        jets = select_jets(jets, _in_cubes(jets.centres, lo, hi, parameters.cube_size))
     return Piece(
         edge_keys=edge_keys,
         vertices=vertices,
         faces=faces,
         cube_keys=cube_keys,
         support=support.select(_in_cubes(support.points, lo, hi, parameters.cube_size)),
-        jets=jets,
+        surface=surface.select(_in_cubes(surface.centres, lo, hi, parameters.cube_size)),
         counts=add_counts(dict(fit.counts), stages.counts),
         peak_mib=peak_mib(),
         worker=worker,
@@ -758,10 +755,12 @@ def _in_cubes(positions: np.ndarray, lo, hi, cube: float) -> np.ndarray:
     return np.all((index >= lo) & (index < hi), axis=1)
 
 
-def _owned_jets(pieces) -> Jets | None:
-    """The union of the jets each tile owns (those centred in its cubes), or None."""
-    owned = [p.jets for p in pieces if p.jets is not None]
-    return concatenate_jets(owned) if owned else None
+def _owned_surface(pieces) -> Surface:
+    """The union of the local fits each tile owns (those centred in its cubes)."""
+    owned = [p.surface for p in pieces if p.surface is not None]
+    if not owned:
+        raise ReconstructionError("no surface: every tile failed")
+    return type(owned[0]).concatenate(owned)
 
 
 def _weld(pieces) -> tuple[Mesh, float]:

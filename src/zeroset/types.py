@@ -13,7 +13,7 @@ from ._validate import as_faces, as_points
 
 __all__ = [
     "DistanceField",
-    "Jets",
+    "Frozen",
     "Mesh",
     "Neighbourhoods",
     "Orientation",
@@ -29,7 +29,7 @@ def _rows(values):
     return np.empty((0, 3)) if empty else values
 
 
-class _Frozen:
+class Frozen:
     """Mixin: every ndarray field is read-only; a writeable one is copied first, so the
     caller's arrays stay theirs to change."""
 
@@ -44,7 +44,7 @@ class _Frozen:
 
 
 @dataclass(frozen=True, eq=False)
-class PointCloud(_Frozen):
+class PointCloud(Frozen):
     """Points read from a file, with whatever per-point data the file carried.
 
     Attributes
@@ -72,7 +72,7 @@ class PointCloud(_Frozen):
 
 
 @dataclass(frozen=True, eq=False)
-class Neighbourhoods(_Frozen):
+class Neighbourhoods(Frozen):
     """The k nearest points of every point, itself first.
 
     Attributes
@@ -128,7 +128,7 @@ class Parameters:
 
 
 @dataclass(frozen=True, eq=False)
-class TangentPlanes(_Frozen):
+class TangentPlanes(Frozen):
     """Tangent plane of every point (Hoppe 1992, §3.2).
 
     Attributes
@@ -149,54 +149,12 @@ class TangentPlanes(_Frozen):
     neighbour_count: np.ndarray
 
 
-@dataclass(frozen=True, eq=False)
-class Jets(_Frozen):
-    """Oriented quadric height fits (jets) whose blend is the surface (`zeroset.jets`).
-
-    Jet j is the height function ``h(u, v) = a0 + a1 u + a2 v + a3 u^2 + a4 u v + a5 v^2``
-    plus a quartic over the frame at ``centres[j]`` whose rows are e1, e2 and the normal n:
-    a point x has ``u = (x - c) . e1``, ``v = (x - c) . e2`` and height ``w = (x - c) . n``.
-
-    Attributes
-    ----------
-    centres : (J, 3) float64
-        Weighted centroid of each jet's support.
-    frames : (J, 3, 3) float64
-        Rows e1, e2, n; n is oriented like the tangent planes.
-    coefficients : (J, 10) float64
-        a0 ... a5, in data units, then the quartic's k1, k2, cos t, sin t
-        (`zeroset._kernels.jets.COEFFICIENTS`).
-    radii : (J,) float64
-        Support radius of each jet, in data units.
-    notes : tuple of str
-        How the supports were chosen.
-    """
-
-    centres: np.ndarray
-    frames: np.ndarray
-    coefficients: np.ndarray
-    radii: np.ndarray
-    notes: tuple[str, ...] = field(default=())
-
-    @property
-    def curvature(self) -> np.ndarray:
-        """(J,) largest absolute principal curvature, in 1 / data units: the largest
-        absolute eigenvalue of the Hessian [[2 a3, a4], [a4, 2 a5]]."""
-        a3, a4, a5 = self.coefficients[:, 3], self.coefficients[:, 4], self.coefficients[:, 5]
-        return np.abs(a3 + a5) + np.sqrt((a3 - a5) ** 2 + a4**2)
-
-    @property
-    def support(self) -> float:
-        """Median support radius, in data units."""
-        return float(np.median(self.radii))
-
-
 #: `Orientation.method` when viewpoints were given but not trusted.
 VIEWPOINTS_UNTRUSTED = "mst, viewpoints untrusted"
 
 
 @dataclass(frozen=True, eq=False)
-class Orientation(_Frozen):
+class Orientation(Frozen):
     """Consistently oriented normals.
 
     Attributes
@@ -242,7 +200,7 @@ class Orientation(_Frozen):
 
 
 @dataclass(frozen=True, eq=False)
-class DistanceField(_Frozen):
+class DistanceField(Frozen):
     """Signed distance sampled on a sparse band of one global lattice.
 
     Grid vertex ``(i, j, k)`` lies at ``origin + cube_size * (i, j, k)``.
@@ -269,7 +227,7 @@ class DistanceField(_Frozen):
 
 
 @dataclass(frozen=True, eq=False)
-class Mesh(_Frozen):
+class Mesh(Frozen):
     """Triangle mesh.
 
     Attributes
