@@ -15,6 +15,7 @@ from pathlib import Path
 
 SECTIONS = (
     "accuracy",
+    "first-run",
     "phase1",
     "phase2",
     "cubes",
@@ -38,6 +39,8 @@ and keeps the rest (this introduction included):
 - [Accuracy](#accuracy-of-the-surface-planes-and-jets): bias and error of Hoppe's planes and
   the blended jets against the truth, an open pipe from 5k to 1M points and spheres of five
   radii (`benchmarks/bench_accuracy.py`).
+- [First run](#first-run-compiling-on-a-fresh-install): `zeroset demo` with no compiled
+  kernels, as after `pip install`, beside a warm run (`benchmarks/bench_first_run.py`).
 - [Phase 1](#phase-1-speed-and-memory): speed and memory of `zeroset.reconstruct()` on a noisy
   open pipe, 20k to 1M points (`benchmarks/bench_phase1.py`).
 - [Phase 2](#phase-2-mesh-optimisation): speed, memory and accuracy of `zeroset.optimize()`

@@ -5,10 +5,10 @@ import pytest
 from scipy.spatial import cKDTree
 
 from tests import reference
+from zeroset._kernels import _jit, linalg
 from zeroset._kernels import density as density_kernels
 from zeroset._kernels import evaluate as evaluate_kernels
 from zeroset._kernels import jets as jet_kernels
-from zeroset._kernels import linalg
 from zeroset._kernels import normals as normals_kernels
 from zeroset._kernels import orientation as orientation_kernels
 from zeroset._kernels import triangles as triangle_kernels
@@ -117,6 +117,38 @@ def test_kernel_matches_reference(kernel, ref, build, seed):
         strict=True,
     ):
         np.testing.assert_allclose(g, e, rtol=1e-10, atol=1e-12)
+
+
+@pytest.mark.parametrize(
+    "kernel, build",
+    [
+        (jet_kernels.fit_rows, _fit_inputs),
+        (jet_kernels.blend_rows, _blend_inputs),
+        (density_kernels.sector_nearest, _sector_inputs),
+        (normals_kernels.centroid_covariance, _neighbourhood_inputs),
+        (_closest_points_on_mesh, _triangle_soup_inputs),
+    ],
+    ids=lambda f: getattr(f, "__name__", ""),
+)
+def test_rows_shared_among_threads_give_what_one_thread_gives(kernel, build, monkeypatch):
+    inputs = build(np.random.default_rng(5))
+    whole = kernel(*inputs)
+    monkeypatch.setattr(_jit, "CHUNK_ROWS", 7)
+    monkeypatch.setattr(_jit, "threads", lambda: 4)  # many chunks, even on one core
+    shared = kernel(*inputs)
+    for w, s in zip(whole, shared, strict=True):
+        np.testing.assert_array_equal(s, w)
+
+
+def test_a_kernel_compiles_once_for_frozen_and_writeable_inputs():
+    points, indices, distances, radius = _neighbourhood_inputs(np.random.default_rng(6))
+    frozen = [a.copy() for a in (points, indices, distances, radius)]
+    for a in frozen:
+        a.flags.writeable = False
+    strided = [np.repeat(a, 2, axis=0)[::2] for a in (points, indices, distances, radius)]
+    for arrays in ((points, indices, distances, radius), frozen, strided):
+        normals_kernels.centroid_covariance(*arrays)
+    assert len(normals_kernels._centroid_covariance_rows.signatures) == 1
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])

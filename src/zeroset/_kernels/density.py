@@ -4,16 +4,16 @@ import math
 
 import numpy as np
 
-from ._jit import jit_parallel, prange
+from ._jit import inputs, jit, over_rows
 
 
-@jit_parallel
-def _sector_nearest_rows(points, indices, distances, u, v, sectors, nearest, column):
+@jit
+def _sector_nearest_rows(start, stop, points, indices, distances, u, v, sectors, nearest, column):
     # Direction of each neighbour j of row i: the angle of p_j - p_i in the plane spanned by
     # u[i] (x) and v[i] (y), cut into `sectors` equal sectors from -pi. Columns ascend in
     # distance, so the first one met in a sector is its nearest.
-    n, k = indices.shape
-    for i in prange(n):
+    k = indices.shape[1]
+    for i in range(start, stop):
         p = indices[i, 0]
         for c in range(1, k):
             j = indices[i, c]
@@ -35,7 +35,8 @@ def sector_nearest(points, indices, distances, u, v, sectors):
     """Return the distance (R, sectors) to the nearest neighbour in each direction (inf for
     none) and its column (-1 for none), directions measured in the (u, v) plane of each row."""
     n = indices.shape[0]
+    points, indices, distances, u, v = inputs(points, indices, distances, u, v)
     nearest = np.full((n, sectors), np.inf)
     column = np.full((n, sectors), -1, dtype=np.int64)
-    _sector_nearest_rows(points, indices, distances, u, v, sectors, nearest, column)
+    over_rows(_sector_nearest_rows, n, points, indices, distances, u, v, sectors, nearest, column)
     return nearest, column

@@ -12,7 +12,7 @@ all triangles (Ericson 2005, §6.3 and §6.4), up to rounding.
 import numpy as np
 
 from ..neighbours import spatial_order
-from ._jit import jit, jit_parallel, prange
+from ._jit import jit, over_rows
 from .triangles import closest_point_on_triangle, triangle_rows
 
 LEAF_SIZE = 4
@@ -67,20 +67,26 @@ def _select(keys, items, lo, hi, k):
 def _median_split(centres, order, start, count):
     # Top-down build: node n holds order[start[n] : start[n] + count[n]]; its first
     # ceil(count / 2) triangles by the centre coordinate along the widest axis go left.
+    # Plain loops, not np.full and np.argmax: each would add a fraction of a second of
+    # compiling on a fresh install.
     keys = np.zeros(centres.shape[0])
+    lo, hi = np.empty(3), np.empty(3)
     n_leaves = start.shape[0] // 2
     count[1] = centres.shape[0]
     for node in range(1, n_leaves):
         s, c = start[node], count[node]
         half = (c + 1) // 2
         if c > 1:
-            lo = np.full(3, np.inf)
-            hi = np.full(3, -np.inf)
+            for axis in range(3):
+                lo[axis], hi[axis] = np.inf, -np.inf
             for j in range(s, s + c):
                 for axis in range(3):
                     lo[axis] = min(lo[axis], centres[order[j], axis])
                     hi[axis] = max(hi[axis], centres[order[j], axis])
-            axis = np.argmax(hi - lo)
+            axis = 0
+            for other in (1, 2):
+                if hi[other] - lo[other] > hi[axis] - lo[axis]:
+                    axis = other
             for j in range(s, s + c):
                 keys[j] = centres[order[j], axis]
             _select(keys, order, s, s + c, s + half)
@@ -88,9 +94,9 @@ def _median_split(centres, order, start, count):
         start[2 * node + 1], count[2 * node + 1] = s + half, c - half
 
 
-@jit_parallel
+@jit
 def _closest_face_rows(
-    points, triangles, degenerate, boxes, leaf_start, leaf_count, slot, bary, distance2
+    start, stop, points, triangles, degenerate, boxes, leaf_start, leaf_count, slot, bary, distance2
 ):
     # For each point, the minimum over triangles T of |p - q(p, T)|^2, found by branch and
     # bound over the boxes: a subtree is skipped when its box is no nearer than the best
@@ -98,7 +104,7 @@ def _closest_face_rows(
     # leaf order, `degenerate` (S,) their flags; `slot` holds a row to start from (-1:
     # none) and gets the row of the closest point, `bary` its barycentric coordinates.
     n_leaves = leaf_start.shape[0]
-    for i in prange(points.shape[0]):
+    for i in range(start, stop):
         px, py, pz = points[i, 0], points[i, 1], points[i, 2]
         best, best_slot = np.inf, slot[i]
         bu, bv, bw = 1.0, 0.0, 0.0
@@ -203,7 +209,9 @@ def closest_points_on_mesh(points, vertices, faces, guess=None, in_order=False):
         slot = slot_of_face[guess[query]]
     bary = np.zeros((n, 3))
     distance2 = np.zeros(n)
-    _closest_face_rows(
+    over_rows(
+        _closest_face_rows,
+        n,
         points if in_order else np.ascontiguousarray(points[query]),
         triangles,
         degenerate,

@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from ._jit import jit, jit_parallel, prange
+from ._jit import inputs, jit, over_rows
 from .linalg import cholesky_solve, eigh3
 
 #: Ridge added to the normal equations, relative to their trace (in support-scaled units).
@@ -58,11 +58,11 @@ def _set_quartic(x):
 
 
 @jit
-def _solve_quadric(points, weights, spreads, indices, distances, i, r, c, frame, x, freedom):
+def _solve_quadric(points, weights, spreads, indices, distances, i, r, c, frame, x):
     # Weighted least squares for a0..a5 of the heights less the quartic of x (support-scaled).
     # A row standing for points of covariance S has mean height h(mean) + tr(H S) / 2, so
     # its quadratic terms are the second moments u^2 + S_uu, u v + S_uv, v^2 + S_vv.
-    # With `freedom`, returns the freedom the fit absorbs, tr(A^-1 B) with A = X^T W X,
+    # Returns the freedom the fit absorbs, tr(A^-1 B) with A = X^T W X,
     # B = X^T W K X (W the weights times the kernel K): the expected weighted squared
     # residual of rows of noise variance sigma^2 / weight is sigma^2 (sum K - tr(A^-1 B)).
     k = indices.shape[1]
@@ -97,9 +97,8 @@ def _solve_quadric(points, weights, spreads, indices, distances, i, r, c, frame,
                 solved[a, 0] += wa * h
                 for b in range(a, 6):
                     normal[a, b] += wa * row[b]
-                if freedom:
-                    for b in range(a, 6):
-                        solved[a, b + 1] += wa * kern * row[b]
+                for b in range(a, 6):
+                    solved[a, b + 1] += wa * kern * row[b]
     for a in range(6):
         for b in range(a):
             normal[a, b] = normal[b, a]
@@ -107,8 +106,11 @@ def _solve_quadric(points, weights, spreads, indices, distances, i, r, c, frame,
     ridge = RIDGE * (normal[0, 0] + normal[1, 1] + normal[2, 2] + normal[3, 3])
     for a in range(6):
         normal[a, a] += ridge
-    if not cholesky_solve(normal.copy(), solved):
-        solved[:] = np.linalg.solve(normal, solved)
+    # With the ridge, the normal equations are positive definite unless they hold a NaN.
+    if not cholesky_solve(normal, solved):
+        for a in range(6):
+            for b in range(7):
+                solved[a, b] = 0.0
     x[0] = solved[0, 0]
     x[1] = solved[1, 0] / r
     x[2] = solved[2, 0] / r
@@ -120,16 +122,16 @@ def _solve_quadric(points, weights, spreads, indices, distances, i, r, c, frame,
     )
 
 
-@jit_parallel
-def _fit_rows(points, weights, spreads, indices, distances, radius, min_count, centres, frames,
-              coefficients, radii, mass, misfit, freedom):
+@jit
+def _fit_rows(start, stop, points, weights, spreads, indices, distances, radius, min_count,
+              centres, frames, coefficients, radii, mass, misfit, freedom):
     # Row i: weights c_j (1 - (d/r)^2)^2 over the neighbours within r = max(radius[i], the
     # distance to its min_count-th neighbour); centroid and PCA frame (e1, e2, n); then
     # w = a0 + a1 u + a2 v + a3 u^2 + a4 u v + a5 v^2 by weighted least squares in
     # coordinates scaled by r. misfit = sum c k r^2 / sum k, the kernel k = (1 - (d/r)^2)^2;
     # freedom = tr(A^-1 B) / sum k, so that pure noise has misfit sigma^2 (1 - freedom).
-    n, k = indices.shape
-    for i in prange(n):
+    k = indices.shape[1]
+    for i in range(start, stop):
         r = max(radius[i], distances[i, min(min_count, k) - 1] * (1.0 + 1e-9))
         radii[i] = r
         sw = 0.0
@@ -147,7 +149,8 @@ def _fit_rows(points, weights, spreads, indices, distances, radius, min_count, c
                 m += weights[j]
                 for d in range(3):
                     c[d] += w * points[j, d]
-        c /= sw
+        for d in range(3):
+            c[d] /= sw
         cov = np.zeros((3, 3))
         for s in range(k):
             q = distances[i, s] / r
@@ -167,11 +170,9 @@ def _fit_rows(points, weights, spreads, indices, distances, radius, min_count, c
             frame[1, d] = vectors[d, 1]
             frame[2, d] = vectors[d, 0]
         x = np.zeros(COEFFICIENTS)
-        _solve_quadric(points, weights, spreads, indices, distances, i, r, c, frame, x, False)
+        _solve_quadric(points, weights, spreads, indices, distances, i, r, c, frame, x)
         _set_quartic(x)  # then the quadric under the quartic of its curvatures
-        absorbed = _solve_quadric(
-            points, weights, spreads, indices, distances, i, r, c, frame, x, True
-        )
+        absorbed = _solve_quadric(points, weights, spreads, indices, distances, i, r, c, frame, x)
         res = 0.0
         for s in range(k):
             q = distances[i, s] / r
@@ -182,8 +183,10 @@ def _fit_rows(points, weights, spreads, indices, distances, radius, min_count, c
                 res += weights[j] * (1.0 - q * q) ** 2 * e * e
         for d in range(3):
             centres[i, d] = c[d]
-        frames[i] = frame
-        coefficients[i] = x
+            for e in range(3):
+                frames[i, d, e] = frame[d, e]
+        for d in range(COEFFICIENTS):
+            coefficients[i, d] = x[d]
         mass[i] = m
         misfit[i] = res / sk
         freedom[i] = absorbed / sk
@@ -200,21 +203,27 @@ def fit_rows(points, weights, spreads, indices, distances, radius, min_count):
     sigma^2 / weight about the quadric, the expected misfit is sigma^2 (1 - freedom).
     """
     n = indices.shape[0]
+    points, weights, spreads, indices, distances, radius = inputs(
+        points, weights, spreads, indices, distances, np.asarray(radius, dtype=np.float64)
+    )
     centres, frames = np.zeros((n, 3)), np.zeros((n, 3, 3))
     coefficients = np.zeros((n, COEFFICIENTS))
     radii, mass, misfit, freedom = np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n)
-    _fit_rows(points, weights, spreads, indices, distances, np.asarray(radius, dtype=np.float64),
-              min_count, centres, frames, coefficients, radii, mass, misfit, freedom)
+    over_rows(_fit_rows, n, points, weights, spreads, indices, distances, radius, min_count,
+              centres, frames, coefficients, radii, mass, misfit, freedom)
     return centres, frames, coefficients, radii, mass, misfit, freedom
 
 
-@jit_parallel
-def _blend_rows(positions, indices, distances, centres, frames, coefficients, values,
+@jit
+def _blend_rows(start, stop, positions, indices, distances, centres, frames, coefficients, values,
                 gradients):
     # Partition of unity over the k - 1 nearest jets: weight (1 - (d / d_k)^2)^2, with d_k
     # the distance to the k-th nearest, so a jet's weight falls to zero as it leaves the set.
-    m, k = indices.shape
-    for i in prange(m):
+    # Each jet is copied into arrays of the kernel's own, as `_fit_rows` holds its jet: the
+    # helpers then compile once for both.
+    k = indices.shape[1]
+    centre, frame, a = np.empty(3), np.empty((3, 3)), np.empty(COEFFICIENTS)
+    for i in range(start, stop):
         reach = distances[i, k - 1]
         total = 0.0
         f = 0.0
@@ -227,8 +236,13 @@ def _blend_rows(positions, indices, distances, centres, frames, coefficients, va
             if w == 0.0:
                 continue
             j = indices[i, s]
-            u, v, h = _frame_coordinates(positions[i], centres[j], frames[j])
-            a = coefficients[j]
+            for d in range(3):
+                centre[d] = centres[j, d]
+                for e in range(3):
+                    frame[d, e] = frames[j, d, e]
+            for d in range(COEFFICIENTS):
+                a[d] = coefficients[j, d]
+            u, v, h = _frame_coordinates(positions[i], centre, frame)
             q, qu, qv = _quartic(a, u, v)
             height = a[0] + a[1] * u + a[2] * v + a[3] * u * u + a[4] * u * v + a[5] * v * v + q
             hu = a[1] + 2.0 * a[3] * u + a[4] * v + qu
@@ -251,6 +265,10 @@ def blend_rows(positions, indices, distances, centres, frames, coefficients):
     `indices` and `distances` (M, k) are each position's k nearest jet centres, ascending.
     """
     m = positions.shape[0]
+    positions, indices, distances, centres, frames, coefficients = inputs(
+        positions, indices, distances, centres, frames, coefficients
+    )
     values, gradients = np.zeros(m), np.zeros((m, 3))
-    _blend_rows(positions, indices, distances, centres, frames, coefficients, values, gradients)
+    over_rows(_blend_rows, m, positions, indices, distances, centres, frames, coefficients,
+              values, gradients)
     return values, gradients

@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from ._jit import jit, jit_parallel, prange
+from ._jit import inputs, jit, over_rows
 
 #: Cyclic Jacobi sweeps of `eigh3`; each squares the off-diagonal remainder.
 SWEEPS = 8
@@ -91,17 +91,23 @@ def cholesky_solve(a, b):
     return True
 
 
-@jit_parallel
-def _eigh_rows(matrices, values, vectors):
-    for i in prange(matrices.shape[0]):
-        values[i] = eigh3(matrices[i], vectors[i])
+@jit
+def _eigh_rows(start, stop, matrices, values, vectors):
+    matrix = np.empty((3, 3))  # writeable, as `zeroset._kernels.jets` passes its own
+    for i in range(start, stop):
+        for r in range(3):
+            for c in range(3):
+                matrix[r, c] = matrices[i, r, c]
+        row = eigh3(matrix, vectors[i])
+        for d in range(3):
+            values[i, d] = row[d]
 
 
 def eigh_rows(matrices):
     """Eigenvalues (N, 3), ascending, and unit eigenvectors (N, 3, 3), in columns, of the
     symmetric (N, 3, 3) `matrices`: ``np.linalg.eigh`` for a stack of 3 x 3 matrices."""
-    matrices = np.ascontiguousarray(matrices, dtype=np.float64)
+    (matrices,) = inputs(np.asarray(matrices, dtype=np.float64))
     values = np.empty((matrices.shape[0], 3))
     vectors = np.empty_like(matrices)
-    _eigh_rows(matrices, values, vectors)
+    over_rows(_eigh_rows, matrices.shape[0], matrices, values, vectors)
     return values, vectors

@@ -2,15 +2,17 @@
 
 import numpy as np
 
-from ._jit import jit_parallel, prange
+from ._jit import inputs, jit, over_rows
 
 
-@jit_parallel
-def _centroid_covariance_rows(points, indices, distances, radius, centroids, covariances, counts):
+@jit
+def _centroid_covariance_rows(
+    start, stop, points, indices, distances, radius, centroids, covariances, counts
+):
     # Centroid o_i and covariance CV_i = (1/m) sum (p_j - o_i)(p_j - o_i)^T over the
     # neighbours j of i within radius[i]; -1 marks a missing neighbour.
-    n, k = indices.shape
-    for i in prange(n):
+    k = indices.shape[1]
+    for i in range(start, stop):
         m = 0
         c0 = 0.0
         c1 = 0.0
@@ -53,8 +55,13 @@ def _centroid_covariance_rows(points, indices, distances, radius, centroids, cov
 def centroid_covariance(points, indices, distances, radius):
     """Return centroids (N, 3), covariances (N, 3, 3) and counts (N,) within radius (N,) per row."""
     n = indices.shape[0]
+    points, indices, distances, radius = inputs(points, indices, distances, radius)
     centroids = np.zeros((n, 3))
     covariances = np.zeros((n, 3, 3))
     counts = np.zeros(n, dtype=np.int64)
-    _centroid_covariance_rows(points, indices, distances, radius, centroids, covariances, counts)
+    over_rows(
+        _centroid_covariance_rows,
+        n,
+        *(points, indices, distances, radius, centroids, covariances, counts),
+    )
     return centroids, covariances, counts

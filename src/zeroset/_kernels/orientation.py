@@ -8,8 +8,12 @@ from ._jit import jit
 @jit
 def _component_extremes(centroids, component, n_components):
     # For each component and each direction +x, -x, +y, -y, +z, -z: the point farthest along it.
-    best = np.full((n_components, 6), -1, dtype=np.int64)
-    value = np.full((n_components, 6), -np.inf)
+    best = np.empty((n_components, 6), dtype=np.int64)
+    value = np.empty((n_components, 6))
+    for c in range(n_components):  # a loop, not np.full: less to compile
+        for d in range(6):
+            best[c, d] = -1
+            value[c, d] = -np.inf
     for i in range(centroids.shape[0]):
         c = component[i]
         for axis in range(3):
