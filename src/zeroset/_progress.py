@@ -8,18 +8,21 @@ from contextlib import contextmanager
 
 from tqdm.auto import tqdm
 
+from .stats import add_counts
+
 try:  # POSIX only
     import resource
 except ImportError:  # pragma: no cover - Windows
     resource = None
 
-__all__ = ["Stages", "add_counts", "peak_mib"]
+__all__ = ["Stages", "peak_mib"]
 
 
 class Stages:
     """Time named stages; show a bar on stderr when `show` is true and stderr is a terminal.
 
-    `run` also gathers what each stage counted: ``counts`` holds their sum (`add_counts`).
+    `run` also gathers what each stage counted: ``counts`` holds their sum
+    (`zeroset.stats.add_counts`).
     As a context manager it closes the bar on exit.
     """
 
@@ -61,19 +64,6 @@ class Stages:
 
     def __exit__(self, *exc) -> None:
         self.close()
-
-
-def add_counts(total: dict, counts: dict) -> dict:
-    """Add `counts` to `total` in place and return it: counts of one name add up, and those
-    named ``widest_*`` keep the largest."""
-    for name, value in counts.items():
-        if name not in total:
-            total[name] = value
-        elif name.startswith("widest_"):
-            total[name] = max(total[name], value)
-        else:
-            total[name] += value
-    return total
 
 
 def peak_mib() -> float | None:

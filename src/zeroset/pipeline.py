@@ -26,6 +26,7 @@ from .stages import (
     stage_names,
     warn_surface_changes,
 )
+from .stats import declared
 from .surface import Surface
 from .types import DistanceField, Mesh, Orientation, Parameters, TangentPlanes
 
@@ -166,7 +167,7 @@ def reconstruct(
         surface=surface,
         field=field_,
         config=config,
-        stats=stats,
+        stats=declared(stats),
         timings=dict(stages.timings),
     )
 

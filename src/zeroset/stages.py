@@ -11,7 +11,7 @@ One sequence serves one machine (`zeroset.pipeline.reconstruct`) and tiles
 3. `finish`: "repair", "rim", "refine".
 
 "prepare" and "parameters" come before them and "optimize" after. Every stage returns its
-result and a dict of counts; a run adds the counts up (`zeroset._progress.add_counts`) and
+result and a dict of counts; a run adds the counts up (`zeroset.stats.add_counts`) and
 times each stage under its name (`zeroset._progress.Stages`).
 """
 

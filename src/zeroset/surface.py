@@ -93,4 +93,5 @@ class Surface(ABC):
 
     @abstractmethod
     def describe(self) -> dict:
-        """What a run reports of it: ``surface_function`` (one line), and its counts."""
+        """What a run reports of it: ``surface_function`` (one line), and its counts (each
+        declared in `zeroset.stats.SCHEMA`)."""

@@ -21,7 +21,7 @@ import numpy as np
 
 from ._extras import require
 from ._lattice import LIMIT
-from ._progress import Stages, add_counts, peak_mib
+from ._progress import Stages, peak_mib
 from ._validate import as_points
 from .config import ReconstructionConfig
 from .contour import keyed_marching_cubes
@@ -45,6 +45,7 @@ from .stages import (
     mesh_stats,
     warn_surface_changes,
 )
+from .stats import add_counts, declared
 from .surface import Surface, surface_kind
 from .topology import is_consistently_oriented, is_edge_manifold
 from .types import Mesh, Parameters
@@ -475,7 +476,7 @@ def reconstruct_tiled(
         parameters=parameters,
         config=config,
         tiles=plan,
-        stats=stats,
+        stats=declared(stats),
         timings=timings,
     )
 
