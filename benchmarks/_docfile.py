@@ -15,6 +15,7 @@ from pathlib import Path
 
 SECTIONS = (
     "accuracy",
+    "ablation",
     "first-run",
     "phase1",
     "phase2",
@@ -39,6 +40,9 @@ and keeps the rest (this introduction included):
 - [Accuracy](#accuracy-of-the-surface-planes-and-jets): bias and error of Hoppe's planes and
   the blended jets against the truth, an open pipe from 5k to 1M points and spheres of five
   radii (`benchmarks/bench_accuracy.py`).
+- [Ablation](#ablation-each-rule-of-phase-1-switched-off): each rule of phase 1 switched off
+  in turn on the benchmark clouds and on two held-out real scans
+  (`benchmarks/bench_ablation.py`).
 - [First run](#first-run-compiling-on-a-fresh-install): `zeroset demo` with no compiled
   kernels, as after `pip install`, beside a warm run (`benchmarks/bench_first_run.py`).
 - [Phase 1](#phase-1-speed-and-memory): speed and memory of `zeroset.reconstruct()` on a noisy

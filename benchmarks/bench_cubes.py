@@ -7,10 +7,10 @@ Run by hand from the repository root (about five minutes on 2 cores)::
 Phase 1: six clouds (a noisy open pipe, a simulated in-pipe laser scan, a pipe elbow, a pipe
 tee, a torus, all with exact truth, and the Stanford bunny's first range scan) are
 reconstructed with the defaults twice: ``contour="marching"`` and ``contour="cubes"`` (the
-Method of Cubes in octree cells, `zeroset.octree`). Each mesh is compared with the truth
+Method of Cubes). Each mesh is compared with the truth
 (Chamfer-L1: the mean of accuracy, mesh to truth, and completeness, truth to mesh) or, for the
 bunny, with its points (mean distance from a point to the mesh); its topology is counted, its
-smallest angles binned, its octree cells counted by side. A mesh of the true pipe with vertices
+smallest angles binned. A mesh of the true pipe with vertices
 exactly on it and a quarter of marching cubes' triangles (`Sample.truth_mesh`) shows what any
 mesh of flat, round triangles that few can reach. Pictures of the pipe and the elbow in both
 contourings go to docs/images/.
@@ -113,7 +113,6 @@ def _measure(name, points, viewpoints, sample, method: str) -> dict:
         "angle_p5": float(np.percentile(angles, 5)),
         "angle_min": float(angles.min()),
         "histogram": (np.histogram(angles, bins=ANGLE_BINS)[0] / angles.size).tolist(),
-        "cells": result.stats.get("cell_sides", {}),
         "refined": result.stats.get("edges_split", 0),
         "seconds": seconds,
     }
@@ -142,7 +141,7 @@ def run_phase1(data: Path) -> tuple[list[dict], dict]:
         m, c = row["marching"], row["cubes"]
         print(
             f"{name:>6}: {m['faces']:,} / {c['faces']:,} faces; Chamfer-L1 "
-            f"{m['chamfer'] * 1e3:.4f} / {c['chamfer'] * 1e3:.4f} mm; cells {c['cells']}",
+            f"{m['chamfer'] * 1e3:.4f} / {c['chamfer'] * 1e3:.4f} mm",
             flush=True,
         )
         if name == "pipe":
@@ -199,7 +198,7 @@ def render(phase1, ideal, phase2, machine: dict, command: str) -> str:
     out = [
         "## Method of Cubes against marching cubes",
         "",
-        "`zeroset reconstruct --contour cubes` (one vertex per surface patch of an octree cell, "
+        "`zeroset reconstruct --contour cubes` (one vertex per surface patch of a cube, "
         "on the averaged tangent plane, then projected onto the jets; faces around every "
         "crossed lattice edge) against the default marching cubes, both with every other "
         "default (the refinement splits the edges whose chords sag too far).",
@@ -209,7 +208,6 @@ def render(phase1, ideal, phase2, machine: dict, command: str) -> str:
         "`zeroset.evaluate.compare_to_reference`); for the bunny, which has no truth, the "
         "mean distance from its points to the mesh. In mm.",
         f"- Equal: the Method of Cubes' Chamfer-L1 at most {EQUAL:g} times marching cubes'.",
-        "- Cells: triangles' octree cells by side (`stats['cell_sides']`), before the refinement.",
         "- Seconds: the whole reconstruction.",
         "",
         *reproduce_lines(command, machine),
@@ -218,21 +216,20 @@ def render(phase1, ideal, phase2, machine: dict, command: str) -> str:
         "",
         "| cloud | method | faces | faces, marching / cubes | Chamfer-L1 mm | equal "
         "| loops | Euler | components | manifold, oriented | smallest angle: min / 5 % "
-        "| cells (side m: vertices) | edges split | s |",
-        "|---|---|---:|---:|---:|---|---:|---:|---:|---|---:|---|---:|---:|",
+        "| edges split | s |",
+        "|---|---|---:|---:|---:|---|---:|---:|---:|---|---:|---:|---:|",
     ]
     for row in phase1:
         ratio = row["marching"]["faces"] / row["cubes"]["faces"]
         equal = row["cubes"]["chamfer"] <= EQUAL * row["marching"]["chamfer"]
         for key in METHODS:
             m = row[key]
-            cells = ", ".join(f"{side}: {n:,}" for side, n in m["cells"].items()) or "-"
             out.append(
                 f"| {row['case']} | {LABELS[key]} | {m['faces']:,} "
                 f"| {f'{ratio:.2f}' if key == 'cubes' else ''} | {m['chamfer'] * 1e3:.4f} "
                 f"| {('yes' if equal else 'no') if key == 'cubes' else ''} "
                 f"| {m['loops']} | {m['euler']} | {m['components']} | {m['manifold']} "
-                f"| {m['angle_min']:.1f}° / {m['angle_p5']:.1f}° | {cells} | {m['refined']:,} "
+                f"| {m['angle_min']:.1f}° / {m['angle_p5']:.1f}° | {m['refined']:,} "
                 f"| {m['seconds']:.1f} |"
             )
     out += [

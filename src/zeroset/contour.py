@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import _lattice, octree
+from . import _lattice
 from ._mc_table import (
     CENTRE,
     CORNER_OFFSETS,
@@ -21,13 +21,11 @@ from ._mc_table import (
     joined_faces,
     patch_table,
 )
-from ._validate import as_points, positive_per_row
+from ._validate import as_points
 from .errors import InputError
-from .neighbours import build_tree
-from .octree import mean_by
 from .types import DistanceField, Mesh
 
-__all__ = ["adaptive_cubes", "keyed_marching_cubes", "marching_cubes", "method_of_cubes"]
+__all__ = ["keyed_marching_cubes", "marching_cubes", "mean_by", "method_of_cubes"]
 
 #: A sign change whose two values differ by more than this many cube sizes is not a zero
 #: crossing of a distance function (|grad f| = 1): it is where the nearest tangent plane
@@ -122,8 +120,8 @@ def keyed_marching_cubes(field: DistanceField, *, owned=None):
     return unique_keys, vertices, faces.reshape(-1, 3).astype(np.int64), cube_keys[cube_of_tri]
 
 
-def method_of_cubes(field: DistanceField, points, centroids, normals, *, sizes=None) -> Mesh:
-    """Contour a sparse signed distance field with one vertex per surface patch of a cell.
+def method_of_cubes(field: DistanceField, points, centroids, normals) -> Mesh:
+    """Contour a sparse signed distance field with one vertex per surface patch of a cube.
 
     The thesis' Method of Cubes: the data points are projected onto their tangent planes;
     in every crossed cube the projections and the oriented normals are averaged into one
@@ -139,10 +137,6 @@ def method_of_cubes(field: DistanceField, points, centroids, normals, *, sizes=N
     corner, or a jump, are skipped as in marching cubes, leaving boundaries; bow-tie
     vertices there are for :func:`zeroset.repair.split_nonmanifold_vertices`.
 
-    With `sizes`, cubes are merged into octree cells of 2, 4 or 8 cubes a side wherever
-    every data point nearest to their vertices allows a cell that large and the surface in
-    the cell is one disc (:func:`zeroset.octree.merge_cells`).
-
     Parameters
     ----------
     field : DistanceField
@@ -153,8 +147,6 @@ def method_of_cubes(field: DistanceField, points, centroids, normals, *, sizes=N
         Tangent-plane origin of each point.
     normals : (N, 3) array_like of float
         Consistently oriented unit normal of each point's plane.
-    sizes : (N,) array_like of float, optional
-        Largest cell side each point allows, in data units; one cube everywhere if None.
 
     Returns
     -------
@@ -172,22 +164,6 @@ def method_of_cubes(field: DistanceField, points, centroids, normals, *, sizes=N
     marching-cubes patches (Nielsen 2004, dual marching cubes), which is what keeps the
     thesis' overlaps, unfolded triangles and 4-vertex gaps (figs. 3.38-3.39) out.
     """
-    return adaptive_cubes(field, points, centroids, normals, sizes=sizes)[0]
-
-
-def adaptive_cubes(field: DistanceField, points, centroids, normals, *, sizes=None, tree=None):
-    """`method_of_cubes`, with the level of each vertex's cell and the merges' counts.
-
-    Returns
-    -------
-    mesh : Mesh
-    level : (M,) int64
-        Each vertex's cell is ``2**level`` cubes a side.
-    counts : dict
-        ``cells_merged`` (merges kept per level) and ``merges_undone``.
-
-    `tree` is a cKDTree over `points`, to reuse one already built.
-    """
     points = as_points(points)
     centroids = as_points(centroids, "centroids")
     normals = as_points(normals, "normals")
@@ -196,24 +172,21 @@ def adaptive_cubes(field: DistanceField, points, centroids, normals, *, sizes=No
             f"points, centroids and normals must have one row each per point; got "
             f"{points.shape}, {centroids.shape} and {normals.shape}"
         )
-    if sizes is not None:
-        sizes = positive_per_row(sizes, "sizes", points.shape[0])
-    mesh, cubes = _dual_mesh(field, points, centroids, normals)
-    if sizes is None or mesh.n_faces == 0:
-        return mesh, np.zeros(mesh.n_vertices, dtype=np.int64), {}
-    nearest = (build_tree(points) if tree is None else tree).query(mesh.vertices, workers=-1)[1]
-    levels = octree.cell_levels(sizes[nearest], field.cube_size)
-    return octree.merge_cells(mesh, cubes, levels)
+    return _dual_mesh(field, points, centroids, normals)
 
 
-def _dual_mesh(field: DistanceField, points, centroids, normals) -> tuple[Mesh, np.ndarray]:
-    """The Method of Cubes on single cubes: the mesh and the (M, 3) cube of each vertex."""
+def mean_by(group: np.ndarray, rows: np.ndarray, n_groups: int) -> np.ndarray:
+    """(G, 3) mean of the (K, 3) `rows` in each of `n_groups` groups (zero where empty)."""
+    count = np.bincount(group, minlength=n_groups)
+    total = np.stack([np.bincount(group, rows[:, i], n_groups) for i in range(3)], axis=1)
+    return total / np.maximum(count, 1)[:, None]
+
+
+def _dual_mesh(field: DistanceField, points, centroids, normals) -> Mesh:
+    """The Method of Cubes: a vertex per surface patch of every crossed cube."""
     cube_keys, values, config = _crossed_cubes(field, _lattice.encode(field.vertices_ijk))
     if cube_keys.size == 0:
-        return (
-            Mesh(vertices=np.zeros((0, 3)), faces=np.zeros((0, 3), dtype=np.int64)),
-            np.zeros((0, 3), dtype=np.int64),
-        )
+        return Mesh(vertices=np.zeros((0, 3)), faces=np.zeros((0, 3), dtype=np.int64))
     patch, n_patches = patch_table()
     case = config | (joined_faces(values) << JOIN_SHIFT)
     per_cube = n_patches[case]
@@ -249,8 +222,7 @@ def _dual_mesh(field: DistanceField, points, centroids, normals) -> tuple[Mesh, 
     meeting = _meetings(
         quads, cube_keys, case, cube_of_vertex, edge_keys[first], lower_positive[first]
     )
-    mesh, source = _triangulate(vertices, quads, reference, meeting, crossing[first])
-    return mesh, _lattice.decode(cube_keys[cube_of_vertex[source]])
+    return _triangulate(vertices, quads, reference, meeting, crossing[first])
 
 
 def _crossed_cubes(
@@ -367,16 +339,14 @@ def _meetings(quads, cube_keys, case, cube_of_vertex, edge_keys, lower_positive)
     return np.where(ambiguous, corner, -1)
 
 
-def _triangulate(vertices, quads, reference, meeting, crossing) -> tuple[Mesh, np.ndarray]:
+def _triangulate(vertices, quads, reference, meeting, crossing) -> Mesh:
     """Split the dual quads into triangles; give a side that two segments cross a vertex each.
 
     Two face-adjacent cubes whose patches meet in two separate segments of their common
     face would share one side between up to four quads. Each segment instead gets a vertex
-    at the mean of its crossings; its quads run through it and are fanned from it. Returns
-    the mesh and, for each of its vertices, the input vertex whose cube it is in.
+    at the mean of its crossings; its quads run through it and are fanned from it.
     """
     n = vertices.shape[0]
-    source = np.arange(n)
     sides = np.sort(np.stack([quads, np.roll(quads, -1, axis=1)], axis=2), axis=2) @ [n, 1]
     keys, inverse = np.unique(
         np.stack([sides, meeting], axis=2).reshape(-1, 2), axis=0, return_inverse=True
@@ -388,15 +358,12 @@ def _triangulate(vertices, quads, reference, meeting, crossing) -> tuple[Mesh, n
     faces = [_split_quads(vertices, quads[plain], reference[plain])]
     if not plain.all():
         q, s = np.nonzero(split)
-        used, first, extra = np.unique(
-            inverse.reshape(quads.shape)[q, s], return_index=True, return_inverse=True
-        )
+        used, extra = np.unique(inverse.reshape(quads.shape)[q, s], return_inverse=True)
         vertices = np.concatenate([vertices, mean_by(extra, crossing[q], used.size)])
-        source = np.concatenate([source, quads[q[first], s[first]]])
         inserted = np.full(quads.shape, -1)
         inserted[q, s] = n + extra
         faces.append(_fan_polygons(quads[~plain], inserted[~plain]))
-    return Mesh(vertices=vertices, faces=np.concatenate(faces).astype(np.int64)), source
+    return Mesh(vertices=vertices, faces=np.concatenate(faces).astype(np.int64))
 
 
 def _split_quads(vertices, quads, reference) -> np.ndarray:

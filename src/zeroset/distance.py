@@ -111,6 +111,7 @@ def signed_distance(
     data_tree = build_tree(points) if tree is None else tree
     centroid_tree = build_tree(centroids) if centroid_tree is None else centroid_tree
     _, nearest = centroid_tree.query(positions, k=CANDIDATES, workers=-1)
+    nearest = nearest.reshape(-1, CANDIDATES)
     bridge_tree = build_tree(bridges) if bridges.shape[0] else None
     values = np.full(positions.shape[0], np.nan)
     pending = np.arange(positions.shape[0])

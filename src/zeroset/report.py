@@ -163,18 +163,6 @@ _REMOVED = {"cropped": "cropped", "sampled_out": "sampled out", "voxel_merged": 
 CONTOUR_NAMES = {"marching": "marching cubes", "cubes": "Method of Cubes"}
 
 
-def _cell_lines(stats: dict) -> list[str]:
-    """The Method of Cubes' octree cells by side, and the merges undone, where it ran."""
-    if "cell_sides" not in stats:
-        return []
-    sides = "; ".join(f"{n:,} of side {side}" for side, n in stats["cell_sides"].items())
-    undone = stats.get("merges_undone", 0)
-    return [
-        f"cells       {sides}, a vertex each, before the refinement"
-        + (f"; {undone:,} merges undone, as they broke a test" if undone else "")
-    ]
-
-
 def format_report(report: dict) -> str:
     """Render a report from :func:`reconstruction_report` as a few aligned lines of text."""
     stats = report["stats"]
@@ -202,7 +190,6 @@ def format_report(report: dict) -> str:
         + _disagreement(stats.get("orientation_disagreement"), stats.get("viewpoints_untrusted")),
         f"grid        {stats['grid_vertices']:,} vertices evaluated, "
         f"{stats['undefined_grid_vertices']:,} undefined",
-        *_cell_lines(stats),
         f"mesh        {CONTOUR_NAMES[report['config']['contour']]}: "
         f"{stats['vertices']:,} vertices, {stats['faces']:,} triangles, "
         f"{stats['boundary_loops']} boundary loop(s), {stats['mesh_components']} component(s), "

@@ -27,7 +27,7 @@ from scipy.spatial import cKDTree
 from . import topology
 from ._progress import Stages
 from .config import ReconstructionConfig
-from .contour import adaptive_cubes, marching_cubes
+from .contour import marching_cubes, method_of_cubes
 from .density import (
     BRIDGE_LENGTH,
     BRIDGE_REACH,
@@ -43,7 +43,6 @@ from .distance import signed_distance
 from .errors import InputError, ReconstructionError, SurfaceWarning
 from .neighbours import build_tree, knn, restrict, spatial_order
 from .normals import tangent_planes
-from .octree import cell_sizes
 from .optimization import optimize_mesh
 from .orientation import UNTRUSTED, orient_normals
 from .parameters import estimate_parameters
@@ -89,7 +88,6 @@ __all__ = [
     "fit_local_surface",
     "distance_field",
     "contour",
-    "point_cell_sizes",
     "data_support",
     "repair",
     "trim_rim",
@@ -544,31 +542,10 @@ def distance_field(cloud: LocalCloud, fitted: FittedPlanes, normals, parameters,
 
 
 def contour(field_: DistanceField, fitted: FittedPlanes, normals, parameters, config):
-    """Stage "contour": marching cubes, or the Method of Cubes on the points of `fitted`,
-    in octree cells of the sizes the points ask for (`point_cell_sizes`; one cube
-    everywhere where the local surface is not smooth)."""
+    """Stage "contour": marching cubes, or the Method of Cubes on the points of `fitted`."""
     if config.contour != "cubes":
         return marching_cubes(field_), {}
-    sizes = point_cell_sizes(fitted, parameters, config) if fitted.surface.smooth else None
-    mesh, level, counts = adaptive_cubes(
-        field_, fitted.points, fitted.planes.centroids, normals, sizes=sizes, tree=fitted.tree
-    )
-    counts["cell_sides"] = {
-        f"{field_.cube_size * 2**lv:.4g}": int(n) for lv, n in enumerate(np.bincount(level)) if n
-    }
-    return mesh, counts
-
-
-def point_cell_sizes(fitted: FittedPlanes, parameters: Parameters, config) -> np.ndarray:
-    """(N,) cell side each point of `fitted` asks for (`zeroset.octree.cell_sizes`), with
-    the curvature of the local surface there."""
-    return cell_sizes(
-        fitted.surface.curvature_at(fitted.points),
-        fitted.density.spacing,
-        noise=parameters.noise,
-        noise_factor=config.noise_factor,
-        cube_factor=config.cube_factor,
-    )
+    return method_of_cubes(field_, fitted.points, fitted.planes.centroids, normals), {}
 
 
 def data_support(fitted: FittedPlanes, bridges: np.ndarray, parameters: Parameters):

@@ -50,10 +50,6 @@ SCHEMA = {
     "gap_bridge_points": Count("points along chords across gaps in the sampling"),
     "grid_vertices": Count("lattice vertices the signed distance was evaluated at"),
     "undefined_grid_vertices": Count("of them, those too far from the data: undefined"),
-    # contour (Method of Cubes)
-    "cell_sides": Count("octree cells by side length (data units as text)", "once"),
-    "cells_merged": Count("octree merges kept, per level", "once"),
-    "merges_undone": Count("octree merges undone because they broke a test"),
     # repair and rim
     "bowtie_vertices_split": Count("vertices shared by two fans of faces, split"),
     "small_holes_filled": Count("small boundary loops closed"),

@@ -49,8 +49,8 @@ class Surface(ABC):
     #: Every value depends only on fits and points within this many rho+delta of it (the
     #: halo that tiles give each other, `zeroset.tiles`).
     reach: ClassVar[float]
-    #: Whether the surface is smooth and knows its curvature: the Method of Cubes then
-    #: sizes its cells by it and stage "refine" moves the vertices onto it.
+    #: Whether the surface is smooth and knows its curvature: stage "refine" then moves the
+    #: vertices onto it and splits the edges whose chords sag.
     smooth: ClassVar[bool]
 
     centres: np.ndarray
