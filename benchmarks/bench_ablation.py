@@ -100,7 +100,6 @@ ABLATIONS = (
     Ablation("R19", "nearest plane, no jets", {"surface": "planes"}),
     Ablation("R21", "one support for all jets (the default's median)", {"fit_support": "median"}),
     Ablation("R22", "no detail measured", patches={"zeroset.jets.DETAIL_MARGIN": np.inf}),
-    Ablation("R23", "no crowded pilots", patches={"zeroset.jets.CROWDED": np.inf}),
     Ablation("R24", "no refits on half the support", patches={"zeroset.jets.MISFIT_HALVINGS": 0}),
     Ablation("R25", "jets fitted across sheets", patches={"zeroset.jets.SHEET": np.inf}),
     Ablation(

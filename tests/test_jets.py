@@ -8,7 +8,6 @@ from zeroset import reconstruct, topology
 from zeroset.config import ReconstructionConfig
 from zeroset.evaluate import sample_surface
 from zeroset.jets import evaluate_jets, fit_jets, orient_jets
-from zeroset.parameters import estimate_parameters
 from zeroset.refine import MAX_LEVELS, project_to_surface, sagging_edges, split_edges
 from zeroset.synthetic import sample_cylinder, sample_sphere, sample_torus
 from zeroset.types import Mesh
@@ -126,25 +125,6 @@ def test_supports_shrink_to_follow_detail(monkeypatch):
     assert error(followed) < 0.4 * error(flattened)
     assert error(followed) < 0.0003  # below the noise of one point
     assert "shrunk to follow detail" in followed.surface.notes[0]
-
-
-def test_crowded_pilots_measure_no_detail():
-    # Told that the points are a hundred times sparser than they are, every pilot holds far
-    # more points than expected, as next to a rotating scanner: detail is not measured.
-    points = _rippled_points()
-    params = estimate_parameters(points, rng=0)
-    density = 13.0 / (np.pi * params.spacing**2)  # 12 neighbours within the spacing
-    fits = {
-        factor: fit_jets(
-            points,
-            noise=params.quadric_noise,
-            rho_delta=params.rho_delta,
-            density=density / factor,
-        )
-        for factor in (1.0, 100.0)
-    }
-    assert fits[100.0].support > 1.6 * fits[1.0].support
-    assert " 0 pilots shrunk" in fits[100.0].notes[0]
 
 
 def test_vertices_lie_on_the_blended_surface():

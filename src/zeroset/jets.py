@@ -65,12 +65,6 @@ MIN_SUPPORT, MAX_SUPPORT = 1.0, 6.0
 #: detail counts where it exceeds this many times the noise variance. On smooth synthetic
 #: surfaces it stays below 2 in 99.9 % of the pilots; on the real scans its median is 10.
 DETAIL_SUPPORT, DETAIL_MARGIN = 0.6, 3.0
-#: Pilots holding more than this many times the points expected at the cloud's density
-#: (`fit_jets`' `density`, from `zeroset.types.Parameters.spacing`) are crowded: next to a
-#: rotating scanner, where detail measured on the in-pipe scan and the SICK room scan shrank
-#: supports until the surface there broke up. Even clouds hold 1.3-1.8 times the expected
-#: count at the median pilot.
-CROWDED = 3.0
 #: Support of the pilot fits, in rho+delta.
 PILOT_SUPPORT = 2.5
 #: Neighbours of a sample point in the noise estimate (`quadric_noise`).
@@ -146,9 +140,8 @@ class Jets(Frozen, Surface):
 
     @classmethod
     def fit(cls, points, owner, planes, parameters, config) -> Jets:
-        """`fit_jets` on the points whose cell was kept, with their cells' planes, the
-        noise of `zeroset.types.Parameters.quadric_noise` and the density its spacing
-        implies."""
+        """`fit_jets` on the points whose cell was kept, with their cells' planes and the
+        noise of `zeroset.types.Parameters.quadric_noise`."""
         rows = owner >= 0
         return fit_jets(
             points[rows],
@@ -158,7 +151,6 @@ class Jets(Frozen, Surface):
             noise=parameters.quadric_noise,
             rho_delta=parameters.rho_delta,
             support=config.fit_support,
-            density=(config.radius_k + 1) / (np.pi * parameters.spacing**2),
         )
 
     def oriented(self, centroids, normals, *, tree=None) -> Jets:
@@ -214,7 +206,6 @@ def fit_jets(
     noise: float,
     rho_delta: float,
     support: float | None = None,
-    density: float | None = None,
 ) -> Jets:
     """Fit the jets of `points`, averaged in surface cells that a support holds 20-40 of.
 
@@ -241,9 +232,6 @@ def fit_jets(
         Neighbourhood radius; supports lie within [1, 6] rho_delta.
     support : float, optional
         One support radius for every jet instead of the bias-variance rule.
-    density : float, optional
-        The cloud's points per unit area: pilots holding far more points than it implies
-        (``CROWDED``) measure no detail. By default every pilot does.
 
     Returns
     -------
@@ -274,8 +262,7 @@ def fit_jets(
         points, feet, rho_delta, (PILOT_SUPPORT, DETAIL_SUPPORT * PILOT_SUPPORT)
     )
     extent = float(np.ptp(points, axis=0).max())
-    crowded = np.inf if density is None else CROWDED * density * np.pi * pilots.radii**2
-    pilot_h, note = _supports(pilots, *fits, crowded, sigma, rho_delta, extent)
+    pilot_h, note = _supports(pilots, *fits, sigma, rho_delta, extent)
     if support is not None:
         support = positive(support, "support")
         note = f"support = {support:.6g}: given"
@@ -522,11 +509,11 @@ def _pilot_fits(points, feet, rho_delta, supports=(PILOT_SUPPORT,)):
     return _jets(fits[0], "pilot fits"), fits, pilot_of
 
 
-def _supports(pilots, fit, small, crowded, sigma, rho_delta, extent):
+def _supports(pilots, fit, small, sigma, rho_delta, extent):
     """Support (P,) of a jet at each pilot by the bias-variance rule, and a note.
 
     `fit` and `small` are the pilots' fits (`fit_rows`) at their support and at
-    DETAIL_SUPPORT of it; pilots holding more than `crowded` points measure no detail."""
+    DETAIL_SUPPORT of it."""
     # The planes' noise holds what curvature their neighbourhoods had; the pilots' residuals
     # do not, and on a detailed object they are the smaller, truer measure. Taken over the
     # 8 nearest pilots, so that it stays local (and tiles see the same).
@@ -552,9 +539,7 @@ def _supports(pilots, fit, small, crowded, sigma, rho_delta, extent):
         tree, (_noise_variance(fit) - _noise_variance(small)) / growth, pilots.centres
     )
     excess = detail - DETAIL_MARGIN * sigma**2
-    # Where a scanner's lines crowd (next to a rotating scanner), neighbouring points share
-    # their lines' errors and are no independent samples: no detail is measured there.
-    detailed = (excess > 0.0) & (fit[4] <= crowded)
+    detailed = excess > 0.0
     best = pilots.radii[detailed] * (
         JET_VARIANCE * sigma[detailed] ** 2 / (2.0 * excess[detailed] * fit[4][detailed])
     ) ** (1.0 / 6.0)
