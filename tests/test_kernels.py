@@ -140,6 +140,10 @@ def test_rows_shared_among_threads_give_what_one_thread_gives(kernel, build, mon
         np.testing.assert_array_equal(s, w)
 
 
+@pytest.mark.skipif(
+    not hasattr(normals_kernels._centroid_covariance_rows, "signatures"),
+    reason="Numba's JIT is off (NUMBA_DISABLE_JIT=1): nothing is compiled",
+)
 def test_a_kernel_compiles_once_for_frozen_and_writeable_inputs():
     points, indices, distances, radius = _neighbourhood_inputs(np.random.default_rng(6))
     frozen = [a.copy() for a in (points, indices, distances, radius)]
