@@ -85,12 +85,14 @@ class Ablation:
 
 
 ABLATIONS = (
+    Ablation("R4", "no noise margin: rho+delta = spacing", {"noise_factor": 0.0}),
     Ablation("R6", "no averaging in cells", {"averaging_cell": 0.0}),
     Ablation(
         "R8", "rho+delta for every point", patches={"zeroset.stages.point_radii": _uniform_radii}
     ),
     Ablation("R9", "no range-noise model", patches={"zeroset.stages.range_noise": _no_range_noise}),
     Ablation("R10", "only isolated points dropped", {"min_neighbours": 1}),
+    Ablation("R11", "planes on the radius alone (3 points at least)", {"k_min": 3}),
     Ablation(
         "R12",
         "orientation edges uncapped",

@@ -585,7 +585,9 @@ def try_collapse(state, scratch, i, j, kappa, c_rep, min_cos, force, result):
     # Region: faces around i or j. Candidates: the same faces with i, j -> H, minus the
     # faces on the edge.
     region = scratch.region
-    n_region = 0
+    # Counters start as np.int64: from a literal 0, Numba would first compile every callee
+    # for Literal[int](0), then again for int64.
+    n_region = np.int64(0)
     for k in range(deg[i]):
         region[n_region] = vf[i, k]
         n_region += 1
@@ -594,7 +596,7 @@ def try_collapse(state, scratch, i, j, kappa, c_rep, min_cos, force, result):
             region[n_region] = vf[j, k]
             n_region += 1
     new_faces, global_face = scratch.new_faces, scratch.global_face
-    n_new = 0
+    n_new = np.int64(0)
     for r in range(n_region):
         f = region[r]
         if _contains(F, f, i) and _contains(F, f, j):
@@ -605,7 +607,7 @@ def try_collapse(state, scratch, i, j, kappa, c_rep, min_cos, force, result):
         global_face[n_new] = f
         n_new += 1
     ring = scratch.ring
-    n_ring = 0
+    n_ring = np.int64(0)
     for m in range(n_i):
         if ring_i[m] != j:
             ring[n_ring] = ring_i[m]
@@ -788,22 +790,23 @@ def try_swap(state, scratch, i, j, kappa, c_rep, min_cos, force, result):
     new_faces[0, 0], new_faces[0, 1], new_faces[0, 2] = i, m, k
     new_faces[1, 0], new_faces[1, 1], new_faces[1, 2] = m, j, k
     global_face[0], global_face[1] = f1, f2
-    pts, old = _gather_points(state, edge, 2, scratch.pts)
+    two = np.int64(2)  # a literal 2 would compile each callee once more, for Literal[int](2)
+    pts, old = _gather_points(state, edge, two, scratch.pts)
     old += kappa * ((V[i, 0] - V[j, 0]) ** 2 + (V[i, 1] - V[j, 1]) ** 2 + (V[i, 2] - V[j, 2]) ** 2)
     n = pts.shape[0]
     face, bary, d2 = scratch.face[:n], scratch.bary[:n], scratch.d2[:n]
-    _guesses(state, pts, global_face, 2, face)
+    _guesses(state, pts, global_face, two, face)
     near = scratch.near
     near[:2, :2] = True
     h = scratch.position  # no corner is the new vertex; unused
-    new = _project_local(state, scratch, pts, new_faces, 2, near, h, face, bary, d2)
+    new = _project_local(state, scratch, pts, new_faces, two, near, h, face, bary, d2)
     new += kappa * ((V[k, 0] - V[m, 0]) ** 2 + (V[k, 1] - V[m, 1]) ** 2 + (V[k, 2] - V[m, 2]) ** 2)
     delta = new - old
     result[0] = delta
     result[1] = -1
     if not force and delta >= 0.0:
         return ENERGY_INCREASE
-    if not _fold_ok(state, scratch, edge, 2, new_faces, 2, h, min_cos):
+    if not _fold_ok(state, scratch, edge, two, new_faces, two, h, min_cos):
         return BAD_DIHEDRAL
     F[f1, 0], F[f1, 1], F[f1, 2] = i, m, k
     F[f2, 0], F[f2, 1], F[f2, 2] = m, j, k

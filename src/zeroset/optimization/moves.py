@@ -20,6 +20,7 @@ import numba
 import numpy as np
 
 from .._kernels import optimize as _kernels
+from .._kernels._jit import inputs
 from ..types import Mesh
 from .fit import Projection
 
@@ -83,12 +84,14 @@ class MeshState:
         width = max(32, int(degree.max(initial=0)) + 8)
         spare_v = int(spare * vertices.shape[0]) + 16 * (LABELS + 1)
         self._state = _kernels.build_state(
-            np.ascontiguousarray(vertices, dtype=np.float64),
-            np.ascontiguousarray(faces, dtype=np.int64),
-            np.ascontiguousarray(points, dtype=np.float64),
-            np.ascontiguousarray(projection.face, dtype=np.int64),
-            np.ascontiguousarray(projection.bary, dtype=np.float64),
-            np.ascontiguousarray(projection.distance2, dtype=np.float64),
+            *inputs(
+                np.asarray(vertices, dtype=np.float64),
+                np.asarray(faces, dtype=np.int64),
+                np.asarray(points, dtype=np.float64),
+                np.asarray(projection.face, dtype=np.int64),
+                np.asarray(projection.bary, dtype=np.float64),
+                np.asarray(projection.distance2, dtype=np.float64),
+            ),
             width,
             spare_v,
             2 * spare_v,
