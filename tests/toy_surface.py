@@ -7,7 +7,6 @@ It is one file; the tests register it with one line (``SURFACES["imls"] = ...``)
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import cached_property
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -29,10 +28,6 @@ class PlaneBlend(Surface):
     centres: np.ndarray
     normals: np.ndarray
     width: float
-
-    @cached_property
-    def tree(self) -> cKDTree:
-        return cKDTree(self.centres)
 
     @classmethod
     def fit(cls, points, owner, planes, parameters, config) -> PlaneBlend:

@@ -31,7 +31,6 @@ the support shrinks to where the detail's error and the jet's variance balance.
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
-from functools import cached_property
 
 import numpy as np
 
@@ -132,11 +131,6 @@ class Jets(Frozen, Surface):
     def support(self) -> float:
         """Median support radius, in data units."""
         return float(np.median(self.radii))
-
-    @cached_property
-    def tree(self):
-        """The k-d tree of `centres`, built once."""
-        return build_tree(self.centres)
 
     @classmethod
     def fit(cls, points, owner, planes, parameters, config) -> Jets:

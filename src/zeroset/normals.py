@@ -4,7 +4,6 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import cached_property
 
 import numpy as np
 
@@ -109,11 +108,6 @@ class NearestPlanes(Frozen, Surface):
 
     centres: np.ndarray
     normals: np.ndarray
-
-    @cached_property
-    def tree(self):
-        """The k-d tree of `centres`, built once."""
-        return build_tree(self.centres)
 
     @classmethod
     def fit(cls, points, owner, planes: TangentPlanes, parameters, config) -> NearestPlanes:

@@ -15,6 +15,7 @@ methods below, so a new kind is one module and one line of ``SURFACES``::
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
+from functools import cached_property
 from importlib import import_module
 from typing import TYPE_CHECKING, ClassVar
 
@@ -54,6 +55,13 @@ class Surface(ABC):
     smooth: ClassVar[bool]
 
     centres: np.ndarray
+
+    @cached_property
+    def tree(self):
+        """The k-d tree of `centres`, built once."""
+        from .neighbours import build_tree  # SciPy loads with the first tree, not the config
+
+        return build_tree(self.centres)
 
     @classmethod
     @abstractmethod
