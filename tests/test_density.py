@@ -4,8 +4,6 @@ import numpy as np
 import pytest
 
 from zeroset.density import (
-    BRIDGE_REACH,
-    RADIUS_CAP,
     gap_bridges,
     local_spacing,
     point_radii,
@@ -14,6 +12,7 @@ from zeroset.density import (
 )
 from zeroset.distance import signed_distance
 from zeroset.neighbours import knn
+from zeroset.thresholds import BRIDGE_REACH, RADIUS_CAP
 
 
 def _grid(xs, ys, rng, noise=0.0):

@@ -1,6 +1,7 @@
 import numpy as np
 
-from zeroset.distance import ZERO_NUDGE, signed_distance
+from zeroset.distance import signed_distance
+from zeroset.thresholds import ZERO_NUDGE
 
 
 def _plane_patch(rng, n=3000):

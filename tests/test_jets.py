@@ -8,8 +8,9 @@ from zeroset import reconstruct, topology
 from zeroset.config import ReconstructionConfig
 from zeroset.evaluate import sample_surface
 from zeroset.jets import evaluate_jets, fit_jets, orient_jets
-from zeroset.refine import MAX_LEVELS, project_to_surface, sagging_edges, split_edges
+from zeroset.refine import project_to_surface, sagging_edges, split_edges
 from zeroset.synthetic import sample_cylinder, sample_sphere, sample_torus
+from zeroset.thresholds import MAX_LEVELS
 from zeroset.types import Mesh
 
 #: Largest |signed mean distance| allowed, as a fraction of the radius.

@@ -37,8 +37,9 @@ from scipy.spatial.transform import Rotation
 from zeroset import reconstruct, topology
 from zeroset.evaluate import points_to_mesh_distance
 from zeroset.neighbours import spatial_order
-from zeroset.parameters import WIDE_ROWS, estimate_parameters
+from zeroset.parameters import estimate_parameters
 from zeroset.synthetic import sample_cylinder, sample_sphere, sample_torus
+from zeroset.thresholds import WIDE_ROWS
 from zeroset.types import Mesh
 
 CONTOURS = st.sampled_from(["marching", "cubes"])

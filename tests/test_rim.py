@@ -6,9 +6,10 @@ from scipy.spatial import cKDTree
 
 from zeroset import ReconstructionConfig, reconstruct, topology
 from zeroset.evaluate import mesh_quality, points_to_mesh_distance
-from zeroset.repair import WIDTH_EDGES, fill_small_holes, split_nonmanifold_vertices
-from zeroset.rim import EDGE_OFFSET, SNAP, cut_mesh, data_edge, empty_balls
+from zeroset.repair import fill_small_holes, split_nonmanifold_vertices
+from zeroset.rim import cut_mesh, data_edge, empty_balls
 from zeroset.synthetic import sample_cylinder, scan_pipe
+from zeroset.thresholds import EDGE_OFFSET, SNAP, WIDTH_EDGES
 from zeroset.types import Mesh
 
 

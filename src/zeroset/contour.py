@@ -23,14 +23,11 @@ from ._mc_table import (
 )
 from ._validate import as_points
 from .errors import InputError
+from .thresholds import MAX_JUMP
 from .types import DistanceField, Mesh
 
 __all__ = ["keyed_marching_cubes", "marching_cubes", "mean_by", "method_of_cubes"]
 
-#: A sign change whose two values differ by more than this many cube sizes is not a zero
-#: crossing of a distance function (|grad f| = 1): it is where the nearest tangent plane
-#: jumps, and the cube is skipped.
-MAX_JUMP = 2.0
 
 #: Cyclic position, counter-clockwise about the edge's axis, of the four cubes around a
 #: lattice edge, indexed by the bits (axis + 1, axis + 2) of the edge's lower corner in each.

@@ -17,15 +17,20 @@ from ._kernels.density import sector_nearest
 from ._kernels.linalg import eigh_rows
 from ._kernels.normals import centroid_covariance
 from .neighbours import build_tree, off_plane, step_cosines
+from .thresholds import (
+    ALONG,
+    BRIDGE_LENGTH,
+    BRIDGE_STEP,
+    CROSSING,
+    EDGE_K,
+    RADIUS_CAP,
+    RANGE_BINS,
+    SECTORS,
+    SECTORS_NEEDED,
+    SMOOTH_K,
+)
 
 __all__ = [
-    "BRIDGE_LENGTH",
-    "BRIDGE_REACH",
-    "BRIDGE_STEP",
-    "RADIUS_CAP",
-    "SECTORS",
-    "SECTORS_NEEDED",
-    "SMOOTH_K",
     "gap_bridges",
     "local_spacing",
     "point_radii",
@@ -33,34 +38,6 @@ __all__ = [
     "sector_distances",
     "sector_radius",
 ]
-
-#: Directions around a point, and how many must hold a neighbour within the spacing.
-SECTORS = 8
-SECTORS_NEEDED = 6
-#: Largest per-point radius, over the cloud's rho+delta; a point that would need more is an
-#: outlier or lies at an edge, and keeps rho+delta.
-RADIUS_CAP = 2.0
-#: Nearest neighbours (the point included) whose median spacing is the point's.
-SMOOTH_K = 16
-#: Range bins of equal count whose median plane residuals fit the noise model.
-RANGE_BINS = 10
-#: Longest chord across a gap, over the cloud's rho+delta.
-BRIDGE_LENGTH = 3.5
-#: Reach of a bridge point in the undefined test, over the cloud's rho+delta.
-BRIDGE_REACH = 1.25
-#: Spacing of the bridge points along their chord, over the cloud's rho+delta.
-BRIDGE_STEP = 0.5
-#: Neighbours searched around a point whose nearest ones leave directions empty.
-EDGE_K = 256
-#: Least cosine between a chord and the side of its first point away from its
-#: neighbours (within about 30 degrees): chords across a gap leave that way, chords
-#: along an open end, or across a round hole off its centre, do not.
-CROSSING = 0.85
-#: A gap bridge's chord lies within this many degrees of the tangent planes at both its
-#: ends (`neighbours.off_plane`). Within 30 degrees (orientation's `ON_ONE_SURFACE`) the
-#: noisy normals of the SICK scans lose bridges they need (mean distance 50.9 -> 64.1 mm
-#: on scan 0).
-ALONG = 60.0
 
 
 def sector_distances(points, indices, distances) -> tuple[np.ndarray, np.ndarray]:

@@ -8,17 +8,10 @@ from . import _lattice
 from ._mc_table import CORNER_OFFSETS
 from ._validate import as_points, as_vector3, positive, positive_per_row
 from .neighbours import build_tree
+from .thresholds import CANDIDATES, ZERO_NUDGE
 from .types import DistanceField
 
 __all__ = ["signed_distance"]
-
-#: Values closer to zero than this fraction of the cube size are pushed off zero, so no
-#: contour vertex lands on a grid vertex (an exact zero makes degenerate triangles).
-ZERO_NUDGE = 1e-3
-
-#: Nearest tangent planes tried, in order, until one's foot point lies near the data; a
-#: single badly fitted plane then cannot open a hole.
-CANDIDATES = 3
 
 
 def signed_distance(

@@ -41,10 +41,29 @@ from ._validate import as_points, positive
 from .neighbours import build_tree
 from .prepare import cell_labels, group_means
 from .surface import Surface
+from .thresholds import (
+    BLEND_K,
+    CELLS_PER_SUPPORT,
+    DETAIL_MARGIN,
+    DETAIL_SUPPORT,
+    FIT_K,
+    JET_BIAS,
+    JET_VARIANCE,
+    MAX_SUPPORT,
+    MIN_CELLS,
+    MIN_SUPPORT,
+    MISFIT_HALVINGS,
+    MISFIT_LIMIT,
+    NOISE_K,
+    ORIENT_K,
+    PILOT_SUPPORT,
+    REACH,
+    SHEET,
+    SHEET_NOISE,
+)
 from .types import Frozen
 
 __all__ = [
-    "REACH",
     "Jets",
     "evaluate_jets",
     "fit_jets",
@@ -52,40 +71,8 @@ __all__ = [
     "quadric_noise",
 ]
 
-#: Variance of a jet's value at its centre times (points in the support) / sigma^2, for the
-#: kernel (1 - (d/h)^2)^2 over a uniformly sampled disc (Monte Carlo, 2,000 trials).
-JET_VARIANCE = 6.0
-#: Bias of a jet's value at its centre per unit quartic coefficient times h^4, same kernel:
-#: a quadric fitted to u^4 over the disc passes 0.025 h^4 below it at the centre.
-JET_BIAS = 0.025
-#: Supports, in rho+delta: the smallest, and the largest (within the tiles' halo).
-MIN_SUPPORT, MAX_SUPPORT = 1.0, 6.0
-#: Second support of the pilot fits, as a share of theirs, that separates detail from noise;
-#: detail counts where it exceeds this many times the noise variance. On smooth synthetic
-#: surfaces it stays below 2 in 99.9 % of the pilots; on the real scans its median is 10.
-DETAIL_SUPPORT, DETAIL_MARGIN = 0.6, 3.0
-#: Support of the pilot fits, in rho+delta.
-PILOT_SUPPORT = 2.5
-#: Neighbours of a sample point in the noise estimate (`quadric_noise`).
-NOISE_K = 128
-#: Cells a fit's support should hold, and the neighbours searched for them.
-CELLS_PER_SUPPORT, FIT_K = 40, 64
-#: Fewest cells a jet is fitted to, whatever its support.
-MIN_CELLS = 16
-#: A jet whose mean squared residual exceeds this many times the noise variance is refitted
-#: on half its support, at most this many times.
-MISFIT_LIMIT, MISFIT_HALVINGS = 4.0, 2
-#: Jets blended at a position (the partition of unity uses one more for its reach).
-BLEND_K = 8
-#: A neighbour further from a jet's tangent plane than the surface's curvature explains,
-#: by this many rho+delta or this many noise levels if more, is on another sheet, and the
-#: jet is not fitted to it; rows of jets checked at a time.
-SHEET, SHEET_NOISE, SHEET_CHUNK = 1.0, 4.0, 16_384
-#: Oriented planes that vote on each jet's orientation.
-ORIENT_K = 8
-#: Every value of the surface lies within this many rho+delta of all the points it
-#: depends on: blend (half a support), support, the pilots that set it and the feet.
-REACH = 16.0
+#: Rows of jets checked at a time for neighbours on another sheet (`SHEET`).
+SHEET_CHUNK = 16_384
 
 
 @dataclass(frozen=True, eq=False)

@@ -11,37 +11,20 @@ from ._kernels.orientation import component_extremes, propagate_signs
 from ._validate import as_points, as_viewpoints, positive
 from .errors import InputError
 from .neighbours import build_tree, knn, off_plane, step_cosines
+from .thresholds import (
+    ABRUPT,
+    DECISIVE,
+    FACING,
+    ON_ONE_SURFACE,
+    STACK_COMPONENTS,
+    STACK_REACH,
+    STACK_SAMPLES,
+    UNTRUSTED,
+)
 from .types import VIEWPOINTS_UNTRUSTED, Neighbourhoods, Orientation
 
 __all__ = ["agree_parts", "orient_normals", "part_extremes"]
 
-#: |cosine| between a normal and the direction to its sensor from which the sensor decides
-#: the normal's sign (the beam meets the surface within 60 degrees of its normal). Nearer
-#: grazing, and in sparse rings far down a pipe, a poorly fitted plane may face the sensor
-#: by chance; such points follow the tree.
-FACING = 0.5
-#: Share of disagreement (`zeroset.types.Orientation.disagreement`) above which the sensors
-#: are not trusted point by point: right sensor positions leave well under 1 % (0.06 % on
-#: the Stanford bunny's ten scans), one sensor on the wrong side of its scan about 3 %, and
-#: scan frames whose origins are no sensor positions 23 % (two scans of a torus).
-UNTRUSTED = 0.05
-#: Share of abrupt disagreement (`_abrupt`) from which the tree, not the sensors, is taken
-#: to be wrong: 0.56 on a thin plate whose two sides one tree joined, 0 with every sensor in
-#: a torus's hole.
-ABRUPT = 0.1
-#: Mean |cosine| from which a component's own sensors decide its sign in the vote.
-DECISIVE = 0.3
-#: A component is joined to a larger one only by a pair of points whose step lies within
-#: this many degrees of both their tangent planes (`_bridges`, `neighbours.off_plane`);
-#: two components face each other across a gap where the step leaves both planes by more
-#: (`_unstack`). The gap bridges of `density` allow 60 degrees (`density.ALONG`, where the
-#: SICK scans' noisy normals lose bridges at 30); joins here have kept 30 since they
-#: were made.
-ON_ONE_SURFACE = 30.0
-#: Without viewpoints, components whose points come within this many of their max_edge of
-#: each other are neighbours that must not point the same way across the gap (`_unstack`);
-#: the largest this many components take part, each with at most `STACK_SAMPLES` points.
-STACK_REACH, STACK_COMPONENTS, STACK_SAMPLES = 6.0, 16, 20_000
 #: Weight of the tree edges joining the virtual root to the anchored points: below every
 #: graph edge (whose weights are at least 1e-9), so that each anchor hangs from the root.
 _ANCHOR_WEIGHT = 1e-12

@@ -5,22 +5,19 @@ from __future__ import annotations
 import numpy as np
 
 from ._validate import positive, require_rng
-from .density import SECTORS, SECTORS_NEEDED, plane_variance, sector_radius
+from .density import plane_variance, sector_radius
 from .errors import InputError, ReconstructionError
-from .jets import NOISE_K, quadric_noise
+from .jets import quadric_noise
 from .neighbours import build_tree
+from .thresholds import NOISE_K, SECTORS, SECTORS_NEEDED, SPACING_K, WIDE_ROWS
 from .types import Parameters
 
 __all__ = ["estimate_parameters", "neighbours_read"]
 
-#: Points, and neighbours of each, used for the direction-balanced spacing and the noise.
-WIDE_ROWS = 2_000
-WIDE_K = 64
-
 
 def neighbours_read(k: int = 12) -> int:
     """How many nearest points of each measured point `estimate_parameters` reads."""
-    return max(k + 1, WIDE_K, NOISE_K)
+    return max(k + 1, SPACING_K, NOISE_K)
 
 
 def estimate_parameters(
@@ -116,10 +113,10 @@ def estimate_parameters(
     distances, indices = tree.query(points[rows], k=kk, workers=-1)
     kth = distances[:, -1]
     wide_distances, wide_indices = tree.query(
-        points[rows[:WIDE_ROWS]], k=min(WIDE_K, n), workers=-1
+        points[rows[:WIDE_ROWS]], k=min(SPACING_K, n), workers=-1
     )
     isotropic = float(np.quantile(kth, quantile))
-    # A direction with no neighbour among the WIDE_K counts as the farthest one.
+    # A direction with no neighbour among the SPACING_K counts as the farthest one.
     balanced = np.minimum(
         sector_radius(points, wide_indices, wide_distances), wide_distances[:, -1]
     )

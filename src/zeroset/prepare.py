@@ -14,6 +14,7 @@ import numpy as np
 from . import _lattice
 from ._validate import as_vector3, positive
 from .errors import InputError, ReconstructionError
+from .thresholds import SPLIT_VIEW
 from .types import Neighbourhoods
 
 __all__ = [
@@ -30,9 +31,6 @@ __all__ = [
 ]
 
 
-#: Shortest mean of a group's unit directions to its sensors for the group to have one: a
-#: group seen from opposite sides (both faces of a thin sheet in one cell) has none.
-SPLIT_VIEW = 0.25
 #: Points per chunk when a cloud is reduced while it is read.
 CHUNK_POINTS = 4_000_000
 
@@ -145,9 +143,11 @@ def reduce_chunks(
     for start, chunk, _, keep in selected():
         best.offer(start + np.flatnonzero(keep), _rows_of(chunk, keep))
     rows, columns = best.result()
-    counts["voxel_merged"] = counts["input_points"] - sum(
-        counts.get(name, 0) for name in ("cropped", "sampled_out")
-    ) - rows.size
+    counts["voxel_merged"] = (
+        counts["input_points"]
+        - sum(counts.get(name, 0) for name in ("cropped", "sampled_out"))
+        - rows.size
+    )
     return Reduction(rows=rows, columns=columns, counts=counts)
 
 
@@ -254,9 +254,7 @@ class _VoxelCells:
         counts = np.concatenate([self.counts, np.ones(len(points), dtype=np.int64)])
         self.keys, label = np.unique(keys, return_inverse=True)
         self.counts = np.bincount(label, weights=counts).astype(np.int64)
-        self.sums = np.stack(
-            [np.bincount(label, weights=offsets[:, d]) for d in range(3)], axis=1
-        )
+        self.sums = np.stack([np.bincount(label, weights=offsets[:, d]) for d in range(3)], axis=1)
 
 
 class _VoxelChoice:

@@ -15,18 +15,11 @@ from __future__ import annotations
 import numpy as np
 
 from .surface import Surface
+from .thresholds import CHORD_NOISE, CHORD_RELATIVE, MAX_LEVELS, PROJECTION_STEPS
 from .topology import face_area_vectors, undirected_edges, undo_turned_faces
 from .types import Mesh
 
 __all__ = ["project_to_surface", "refine_mesh", "sag_tolerance", "sagging_edges", "split_edges"]
-
-#: Newton steps per projection.
-PROJECTION_STEPS = 2
-#: Most four-way splits of every triangle.
-MAX_LEVELS = 3
-#: Chord sag allowed: this fraction of the radius 1 / kappa, or this fraction of the noise
-#: of one point, whichever is larger.
-CHORD_RELATIVE, CHORD_NOISE = 1e-4, 0.1
 
 
 def sag_tolerance(curvature, noise: float) -> np.ndarray:

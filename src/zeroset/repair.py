@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .thresholds import FAN_FRACTIONS
 from .topology import boundary_loops, corner_fans, edge_ids, face_components, vertex_normals
 from .types import Mesh
 
@@ -59,13 +60,6 @@ def split_nonmanifold_vertices(mesh: Mesh) -> tuple[Mesh, int]:
     new_faces = remap[fan].reshape(-1, 3)
     added = n_fans - np.unique(corner_vertex).size
     return Mesh(vertices=vertices, faces=new_faces), int(added)
-
-
-#: Most edges of a loop that the rim cut may close (`zeroset.stages.trim_rim`).
-WIDTH_EDGES = 128
-#: Fractions of the way from a loop's centroid to each of its vertices and edge midpoints
-#: at which `fan_samples` samples the fan over it.
-FAN_FRACTIONS = (0.0, 0.25, 0.5, 0.75)
 
 
 def _width(mesh: Mesh, loop: np.ndarray) -> float:

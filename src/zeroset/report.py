@@ -9,8 +9,8 @@ import numpy as np
 from ._validate import as_points, require_rng
 from .evaluate import compare_to_points
 from .optimization import OptimizationResult
-from .orientation import UNTRUSTED
 from .pipeline import Reconstruction
+from .thresholds import UNTRUSTED
 
 __all__ = [
     "format_report",

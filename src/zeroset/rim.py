@@ -28,6 +28,20 @@ import numpy as np
 
 from .neighbours import ball_pairs, build_tree
 from .repair import fan_samples
+from .thresholds import (
+    BAND,
+    CLIMB,
+    CLIMB_STEPS,
+    CROSSING_STEPS,
+    DISC,
+    DISC_POINTS,
+    EDGE_OFFSET,
+    ENCLOSE,
+    FAR,
+    OPEN_ANGLE,
+    SNAP,
+    THIN,
+)
 from .topology import (
     boundary_edges,
     corner_fans,
@@ -40,7 +54,6 @@ from .topology import (
 from .types import Mesh
 
 __all__ = [
-    "EDGE_OFFSET",
     "cut_mesh",
     "data_edge",
     "empty_ball_depth",
@@ -48,34 +61,6 @@ __all__ = [
     "no_empty_ball",
     "trim_to_data",
 ]
-
-#: Tangential offset of the centroid of a half disc of radius 1 from its centre.
-EDGE_OFFSET = 4.0 / (3.0 * np.pi)
-#: Radius of the disc whose centroid is taken, over the radius of the nearest point.
-DISC = 1.5
-#: Smallest variance across the data in a disc, over its radius squared: 1/4 for a full
-#: disc, 0.07 for a half disc; less is a curve of points, not a surface.
-THIN = 0.02
-#: Fewest points in a disc for its centroid to count; with fewer the vertex is outside.
-MIN_POINTS = 3
-#: Vertices within this many largest radii (plus one cube) of a boundary vertex are
-#: tested: the lattice defines the surface at most a radius and a cube past the data.
-BAND = 2.5
-#: Vertices farther than this many radii from the nearest point are tested too: a hole
-#: in the data that the lattice closed.
-FAR = 0.5
-#: Steps of regula falsi (Illinois) that place each crossing on its edge.
-CROSSING_STEPS = 4
-#: How far, over the smallest empty ball's radius, a centre may climb the distance to the
-#: points, and in how many steps.
-CLIMB = 0.5
-CLIMB_STEPS = 8
-#: Points within this many radii of an empty ball count around it, and the widest angle
-#: between two of them about its centre for the ball to be a hole.
-ENCLOSE = 1.25
-OPEN_ANGLE = np.pi / 2
-#: A cut this close to an end of its edge, over the edge's length, moves that end.
-SNAP = 0.2
 
 
 def data_edge(
@@ -87,7 +72,7 @@ def data_edge(
     nearest v, and c the centroid of the points within R of v. The value is
     ``|(c - v) - ((c - v) . n) n| / R - EDGE_OFFSET``: negative inside the data, zero on a
     straight edge of evenly spaced points, positive beyond it; 1 where fewer than
-    ``MIN_POINTS`` points lie within R. Where the points in the disc spread less than
+    ``DISC_POINTS`` points lie within R. Where the points in the disc spread less than
     ``THIN R^2`` (variance) across their main direction in the tangent plane, they sample
     a curve, and the value is at least ``1 - variance / (THIN R^2)``. It is also at least
     ``d / r - 1``, with d the distance to the nearest point and r its `reach`: the surface
@@ -131,7 +116,7 @@ def data_edge(
     value = np.maximum(value, gap / reach[nearest] - 1.0)
     if hollow is not None:
         value = np.maximum(value, hollow / radius)
-    return np.where(counts >= MIN_POINTS, value, 1.0)
+    return np.where(counts >= DISC_POINTS, value, 1.0)
 
 
 def empty_balls(mesh: Mesh, normals, tree, least, *, planes=None) -> tuple[np.ndarray, np.ndarray]:

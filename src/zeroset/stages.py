@@ -28,41 +28,30 @@ from . import topology
 from ._progress import Stages
 from .config import ReconstructionConfig
 from .contour import marching_cubes, method_of_cubes
-from .density import (
-    BRIDGE_LENGTH,
-    BRIDGE_REACH,
-    BRIDGE_STEP,
-    SMOOTH_K,
-    gap_bridges,
-    local_spacing,
-    point_radii,
-    range_noise,
-    sector_distances,
-)
+from .density import gap_bridges, local_spacing, point_radii, range_noise, sector_distances
 from .distance import signed_distance
 from .errors import InputError, ReconstructionError, SurfaceWarning
 from .neighbours import build_tree, knn, restrict, spatial_order
 from .normals import tangent_planes
 from .optimization import optimize_mesh
-from .orientation import UNTRUSTED, orient_normals
+from .orientation import orient_normals
 from .parameters import estimate_parameters
-from .prepare import (
-    cell_labels,
-    crop,
-    drop_outliers,
-    group_means,
-    group_viewpoints,
-    reduce_chunks,
-)
+from .prepare import cell_labels, crop, drop_outliers, group_means, group_viewpoints, reduce_chunks
 from .refine import refine_mesh
-from .repair import (
-    WIDTH_EDGES,
-    fill_small_holes,
-    remove_small_components,
-    split_nonmanifold_vertices,
-)
+from .repair import fill_small_holes, remove_small_components, split_nonmanifold_vertices
 from .rim import no_empty_ball, trim_to_data
 from .surface import Surface, surface_kind
+from .thresholds import (
+    BRIDGE_REACH,
+    BRIDGE_STEP,
+    BRIDGES_NOTED,
+    HOLE_BALL,
+    HOLE_WIDTH,
+    SMOOTH_K,
+    UNTRUSTED,
+    WIDE_K,
+    WIDTH_EDGES,
+)
 from .types import DistanceField, Mesh, Neighbourhoods, Orientation, Parameters, TangentPlanes
 
 __all__ = [
@@ -119,21 +108,6 @@ STAGES = (
 SMOOTH_STAGES = ("refine",)
 RIM_STAGES = ("rim",)
 OPTIMIZE_STAGE = "optimize"
-#: Gap-bridge points, as a share of the fitted points, from which a run warns of them (an
-#: evenly sampled sphere, pipe or torus makes 0.8-1 %, a scan with gaps between its lines
-#: tens of percent).
-BRIDGES_NOTED = 0.02
-#: Nearest neighbours found per point: enough to reach across the gap between scan lines.
-WIDE_K = 32
-#: Widest hole closed, over rho+delta, after contouring and after the rim cut: the signed
-#: distance is defined within rho+delta of the data on either side, so the data cannot
-#: resolve a narrower one.
-HOLE_WIDTH = 2.0
-#: Radius of the empty balls that open a hole to its measured points, over the radius of
-#: the point each reaches to (rho+delta where the sampling is even): half the longest gap
-#: bridge, so no gap the bridges may cross is opened, and no hole wider than a bridge may
-#: cross is closed by chords off its centre.
-HOLE_BALL = BRIDGE_LENGTH / 2.0
 #: Largest coordinate magnitude and smallest extent accepted: squared distances between
 #: points then stay far from float64's overflow (1.8e308) and underflow (2.2e-308).
 MAX_COORDINATE = 1e100

@@ -25,7 +25,6 @@ from ._progress import Stages, peak_mib
 from ._validate import as_points
 from .config import ReconstructionConfig
 from .contour import keyed_marching_cubes
-from .density import RADIUS_CAP
 from .errors import InputError, ReconstructionError, SurfaceWarning
 from .neighbours import build_tree, spatial_order
 from .orientation import agree_parts, part_extremes
@@ -47,6 +46,7 @@ from .stages import (
 )
 from .stats import add_counts, declared
 from .surface import Surface, surface_kind
+from .thresholds import RADIUS_CAP
 from .topology import is_consistently_oriented, is_edge_manifold
 from .types import Mesh, Parameters
 
