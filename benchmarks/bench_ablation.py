@@ -74,17 +74,39 @@ def _unrefined(mesh, surface, parameters, config):
     return mesh, {}
 
 
+def _isotropic_spacing(points, indices, distances):
+    return np.zeros(len(indices))
+
+
+def _no_joins(centroids, normals, component, reach):
+    from scipy import sparse
+
+    return sparse.csr_matrix((len(centroids), len(centroids)))
+
+
+def _root_up(alignment):
+    # Hoppe's root: the point of largest z, its normal turned to +z (direction 4 of six).
+    return np.full(len(alignment), 4), np.where(alignment[:, 4] >= 0.0, 1.0, -1.0)
+
+
 @dataclass(frozen=True)
 class Ablation:
-    """Rule `rule` off: `config` overrides and `patches` (target -> value) for the run."""
+    """Rule `rule` off: `config` overrides and `patches` (target -> value) for the run, and
+    the cloud's sensor positions withheld unless `sensors`."""
 
     rule: str
     off: str
     config: dict = field(default_factory=dict)
     patches: dict = field(default_factory=dict)
+    sensors: bool = True
 
 
 ABLATIONS = (
+    Ablation(
+        "R3",
+        "spacing from the 12th neighbour alone",
+        patches={"zeroset.parameters.sector_radius": _isotropic_spacing},
+    ),
     Ablation("R4", "no noise margin: rho+delta = spacing", {"noise_factor": 0.0}),
     Ablation("R6", "no averaging in cells", {"averaging_cell": 0.0}),
     Ablation(
@@ -98,7 +120,12 @@ ABLATIONS = (
         "orientation edges uncapped",
         patches={"zeroset.stages.orient_normals": _uncapped_orientation},
     ),
+    Ablation("R13", "no joins of components", patches={"zeroset.orientation._bridges": _no_joins}),
+    Ablation(
+        "R14", "root at the largest z (Hoppe)", patches={"zeroset.orientation.root_rule": _root_up}
+    ),
     Ablation("R15", "no sheets turned apart", patches={"zeroset.orientation.STACK_REACH": 0.0}),
+    Ablation("R7+R9+R16-R18", "sensor positions withheld", sensors=False),
     Ablation("R19", "nearest plane, no jets", {"surface": "planes"}),
     Ablation("R21", "one support for all jets (the default's median)", {"fit_support": "median"}),
     Ablation("R22", "no detail measured", patches={"zeroset.jets.DETAIL_MARGIN": np.inf}),
@@ -154,7 +181,8 @@ def run(cloud: Cloud, reference, ablation: Ablation | None, baseline: Row | None
         warnings.simplefilter("ignore", SurfaceWarning)
         start = time.perf_counter()
         try:
-            result = zeroset.reconstruct(cloud.points, viewpoints=cloud.viewpoints, **overrides)
+            sensors = cloud.viewpoints if ablation is None or ablation.sensors else None
+            result = zeroset.reconstruct(cloud.points, viewpoints=sensors, **overrides)
         except ZerosetError as error:
             return Row(failure=str(error).split(";")[0])
         except Exception as error:  # a rule the rest of the method cannot do without
