@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from ._jit import jit
+from ._jit import inputs, jit
 
 
 @jit
@@ -47,12 +47,14 @@ def _propagate_signs(order, predecessors, normals, root_sign, signs):
 
 
 def component_extremes(centroids, component, n_components):
-    """Return (C, 6) int64: per component, the point farthest along +x, -x, +y, -y, +z, -z."""
-    return _component_extremes(centroids, component, int(n_components))
+    """Return (C, 6) int64: per component (`component` (N,) int64), the point of
+    `centroids` (N, 3) farthest along +x, -x, +y, -y, +z, -z."""
+    return _component_extremes(*inputs(centroids, component), int(n_components))
 
 
 def propagate_signs(order, predecessors, normals, root_sign):
-    """Return (N,) float64 signs +-1 spreading `root_sign` down a breadth-first tree."""
+    """Return (N,) float64 signs +-1 spreading `root_sign` (N,) down a breadth-first tree
+    (`order` and `predecessors` int64, a node's predecessor negative at a root)."""
     signs = np.ones(normals.shape[0])
-    _propagate_signs(order, predecessors, normals, root_sign, signs)
+    _propagate_signs(*inputs(order, predecessors, normals, root_sign), signs)
     return signs

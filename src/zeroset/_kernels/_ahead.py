@@ -1,0 +1,89 @@
+"""Kernels compiled ahead, in a second process, while the first run works.
+
+A fresh install has no compiled kernels, and a run compiles each when it first calls it,
+one after another; most of a first run is that. The kernels a run calls after its first
+stages (the orientation's, the jets' blend, the closest points on the mesh behind a report's
+distances) need none of their results, so a second process started with the command
+compiles them into Numba's cache on another core while the first stages compile theirs;
+the run then loads them (docs/benchmarks.md, "First run"). Once they are cached, no
+process is started.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+
+import numba
+import numpy as np
+
+__all__ = ["compile_late_kernels", "late_kernels_ahead", "late_kernels_cached"]
+
+
+def _late_kernels() -> list:
+    """The dispatchers `compile_late_kernels` compiles."""
+    from .evaluate import _closest_face_rows
+    from .jets import _blend_rows
+    from .orientation import _component_extremes, _propagate_signs
+
+    return [_component_extremes, _propagate_signs, _blend_rows, _closest_face_rows]
+
+
+def late_kernels_cached() -> bool:
+    """Whether Numba's cache holds every late kernel already (or nothing is compiled:
+    Numba's JIT is off)."""
+    if numba.config.DISABLE_JIT:
+        return True
+    return all(
+        any(Path(kernel.stats.cache_path).glob(f"*.{kernel.__name__}-*.nbi"))
+        for kernel in _late_kernels()
+    )
+
+
+def compile_late_kernels() -> None:
+    """Compile the late kernels for the signatures a run calls them with (each wrapper
+    passes `_jit.inputs`), on the smallest inputs: a tetrahedron and two points near it."""
+    from .evaluate import closest_points_on_mesh
+    from .jets import COEFFICIENTS, blend_rows
+    from .orientation import component_extremes, propagate_signs
+
+    vertices = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
+    faces = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]], dtype=np.int64)
+    near = np.array([[0.2, 0.2, 0.9], [2.0, 0.1, 0.1]])
+    one = np.zeros(4, dtype=np.int64)
+    component_extremes(vertices, one, 1)
+    propagate_signs(np.arange(4), np.array([-9999, 0, 0, 0]), vertices, np.ones(4))
+    frames = np.broadcast_to(np.eye(3), (4, 3, 3))
+    indices, distances = np.tile(np.arange(4), (2, 1)), np.ones((2, 4))
+    blend_rows(near, indices, distances, vertices, frames, np.zeros((4, COEFFICIENTS)))
+    closest_points_on_mesh(near, vertices, faces)
+
+
+@contextmanager
+def late_kernels_ahead(wanted: bool = True) -> Iterator[subprocess.Popen | None]:
+    """Within the block, a quiet process compiles the late kernels into Numba's cache
+    (`compile_late_kernels`), unless not `wanted` or they are cached already; it yields
+    that process or None. A run that reaches a kernel first compiles it itself, as without
+    it; a process still at work when the block ends is stopped (Numba renames each cache
+    file into place once written, so none is left half written)."""
+    process = None
+    if wanted and not late_kernels_cached():
+        code = f"from {__name__} import compile_late_kernels; compile_late_kernels()"
+        process = subprocess.Popen(
+            [sys.executable, "-c", code],
+            stdin=subprocess.DEVNULL,
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+            env={**os.environ, "NUMBA_NUM_THREADS": "1"},
+        )
+    try:
+        yield process
+    finally:
+        if process is not None:
+            if process.poll() is None:
+                process.kill()
+            process.wait()
