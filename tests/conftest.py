@@ -1,12 +1,14 @@
 """Shared fixtures: seeded synthetic clouds and their reconstructions (built once per session)."""
 
 import os
+from contextlib import ExitStack
 
 import numpy as np
 import pytest
 from hypothesis import settings
 
 from zeroset import reconstruct
+from zeroset._kernels._ahead import late_kernels_ahead
 from zeroset.synthetic import sample_cylinder, sample_sphere, sample_torus, two_spheres
 from zeroset.types import Mesh
 
@@ -15,6 +17,18 @@ PIPE_NOISE = 0.002
 settings.register_profile("ci", derandomize=True, max_examples=40, deadline=None)
 settings.register_profile("dev", max_examples=40, deadline=None)
 settings.load_profile("ci" if os.environ.get("CI") else "dev")
+
+_SESSION = ExitStack()
+
+
+def pytest_sessionstart(session):
+    # On a fresh Numba cache, the later stages' and phase 2's kernels compile in a second
+    # process while the first tests compile the first stages' (as a first run does).
+    _SESSION.enter_context(late_kernels_ahead(optimize=True))
+
+
+def pytest_sessionfinish(session, exitstatus):
+    _SESSION.close()
 
 
 @pytest.fixture

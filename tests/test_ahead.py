@@ -19,17 +19,17 @@ def _python(code: str, cache) -> str:
     return done.stdout.strip()
 
 
-def test_a_second_process_compiles_the_report_kernels_into_a_fresh_cache(tmp_path):
-    cached = "from zeroset._kernels._ahead import late_kernels_cached; print(late_kernels_cached())"
+def test_a_second_process_compiles_the_late_kernels_into_a_fresh_cache(tmp_path):
     ahead = (
-        "from zeroset._kernels._ahead import late_kernels_ahead\n"
+        "from zeroset._kernels._ahead import late_kernels_ahead, late_kernels_cached\n"
+        "print(late_kernels_cached())\n"
         "with late_kernels_ahead() as process:\n"
-        "    print(None if process is None else process.wait())"
+        "    print(process.wait())\n"  # started, compiled and exited cleanly
+        "print(late_kernels_cached())\n"
+        "with late_kernels_ahead() as process:\n"
+        "    print(process)"  # nothing left to compile: no process
     )
-    assert _python(cached, tmp_path) == "False"
-    assert _python(ahead, tmp_path) == "0"  # started, compiled and exited cleanly
-    assert _python(cached, tmp_path) == "True"
-    assert _python(ahead, tmp_path) == "None"  # nothing left to compile: no process
+    assert _python(ahead, tmp_path).split() == ["False", "0", "True", "None"]
     # A later run loads the signatures it calls from the cache, compiling none of them.
     later = (
         "from zeroset._kernels import _ahead\n"

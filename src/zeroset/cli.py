@@ -569,7 +569,7 @@ def _run_reconstruct(args: argparse.Namespace) -> int:
     if several:
         cloud, registration = _merge(args, clouds, config)
         config = replace(config, viewpoint=None)  # now in every point's sensor position
-    with late_kernels_ahead():  # on a fresh install
+    with late_kernels_ahead(optimize=args.optimize):  # on a fresh install
         result = reconstruct(
             cloud.points,
             config,

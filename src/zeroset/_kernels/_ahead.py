@@ -3,10 +3,10 @@
 A fresh install has no compiled kernels, and a run compiles each when it first calls it,
 one after another; most of a first run is that. The kernels a run calls after its first
 stages (the orientation's, the jets' blend, the closest points on the mesh behind a report's
-distances) need none of their results, so a second process started with the command
-compiles them into Numba's cache on another core while the first stages compile theirs;
-the run then loads them (docs/benchmarks.md, "First run"). Once they are cached, no
-process is started.
+distances, and phase 2's moves) need none of their results, so a second process started
+with the command compiles them into Numba's cache on another core while the first stages
+compile theirs; the run then loads them (docs/benchmarks.md, "First run"). Once they are
+cached, no process is started.
 """
 
 from __future__ import annotations
@@ -21,27 +21,42 @@ from pathlib import Path
 import numba
 import numpy as np
 
-__all__ = ["compile_late_kernels", "late_kernels_ahead", "late_kernels_cached"]
+__all__ = [
+    "compile_late_kernels",
+    "compile_phase2_kernels",
+    "late_kernels_ahead",
+    "late_kernels_cached",
+]
 
 
-def _late_kernels() -> list:
-    """The dispatchers `compile_late_kernels` compiles."""
+def _late_kernels(optimize: bool = False) -> list:
+    """The dispatchers `compile_late_kernels` compiles, and with `optimize` the pass of
+    phase 2's moves (the largest that `compile_phase2_kernels` compiles)."""
     from .evaluate import _closest_face_rows
     from .jets import _blend_rows
+    from .optimize import run_pass
     from .orientation import _component_extremes, _propagate_signs
 
-    return [_component_extremes, _propagate_signs, _blend_rows, _closest_face_rows]
+    late = [_component_extremes, _propagate_signs, _blend_rows, _closest_face_rows]
+    return [*late, run_pass] if optimize else late
 
 
-def late_kernels_cached() -> bool:
-    """Whether Numba's cache holds every late kernel already (or nothing is compiled:
-    Numba's JIT is off)."""
+def late_kernels_cached(optimize: bool = False) -> bool:
+    """Whether Numba's cache holds every late kernel already, with `optimize` phase 2's
+    too (or nothing is compiled: Numba's JIT is off)."""
     if numba.config.DISABLE_JIT:
         return True
-    return all(
-        any(Path(kernel.stats.cache_path).glob(f"*.{kernel.__name__}-*.nbi"))
-        for kernel in _late_kernels()
-    )
+    return all(_cached(kernel) for kernel in _late_kernels(optimize))
+
+
+def _cached(kernel) -> bool:
+    """Whether Numba's cache holds `kernel` compiled from its source as it is now: an index
+    of a source edited or upgraded since is stale, as Numba's own test finds it."""
+    try:
+        fresh_index = kernel._cache._cache_file._load_index
+    except AttributeError:  # another Numba's internals: any index will do
+        return any(Path(kernel.stats.cache_path).glob(f"*.{kernel.__name__}-*.nbi"))
+    return bool(fresh_index())
 
 
 def compile_late_kernels() -> None:
@@ -63,16 +78,41 @@ def compile_late_kernels() -> None:
     closest_points_on_mesh(near, vertices, faces)
 
 
+def compile_phase2_kernels() -> None:
+    """Compile phase 2's kernels for the signatures `zeroset.optimize` calls them with, by
+    optimising the convex hull of 60 points on a unit sphere against 400 noisy ones."""
+    from scipy.spatial import ConvexHull
+
+    from ..optimization import optimize_mesh
+    from ..types import Mesh
+
+    rng = np.random.default_rng(0)
+    points = rng.normal(size=(400, 3))
+    points /= np.linalg.norm(points, axis=1)[:, None]
+    faces = ConvexHull(points[:60]).simplices
+    a, b, c = (points[faces[:, corner]] for corner in range(3))
+    inward = np.einsum("ij,ij->i", np.cross(b - a, c - a), a + b + c) < 0.0
+    faces[inward] = faces[inward][:, ::-1]
+    used, faces = np.unique(faces, return_inverse=True)
+    mesh = Mesh(vertices=points[used], faces=faces.reshape(-1, 3))
+    optimize_mesh(mesh, points + rng.normal(scale=0.01, size=points.shape))
+
+
 @contextmanager
-def late_kernels_ahead(wanted: bool = True) -> Iterator[subprocess.Popen | None]:
+def late_kernels_ahead(
+    wanted: bool = True, *, optimize: bool = False
+) -> Iterator[subprocess.Popen | None]:
     """Within the block, a quiet process compiles the late kernels into Numba's cache
-    (`compile_late_kernels`), unless not `wanted` or they are cached already; it yields
-    that process or None. A run that reaches a kernel first compiles it itself, as without
-    it; a process still at work when the block ends is stopped (Numba renames each cache
-    file into place once written, so none is left half written)."""
+    (`compile_late_kernels`, then with `optimize` `compile_phase2_kernels`), unless not
+    `wanted` or they are cached already; it yields that process or None. A run that reaches
+    a kernel first compiles it itself, as without it; a process still at work when the
+    block ends is stopped (Numba renames each cache file into place once written, so none
+    is left half written)."""
     process = None
-    if wanted and not late_kernels_cached():
-        code = f"from {__name__} import compile_late_kernels; compile_late_kernels()"
+    if wanted and not late_kernels_cached(optimize):
+        code = f"import {__name__} as ahead; ahead.compile_late_kernels()"
+        if optimize:
+            code += "; ahead.compile_phase2_kernels()"
         process = subprocess.Popen(
             [sys.executable, "-c", code],
             stdin=subprocess.DEVNULL,

@@ -887,6 +887,9 @@ def run_pass(
     queue[:n] = edges[:n]
     head, tail = 0, n
     result = np.zeros(2)
+    # A typed False: a literal one would compile each move once more, for Literal[bool],
+    # beside the bool signature that `zeroset.optimization.moves.MoveState` calls.
+    unforced = np.bool_(False)
     alive_v = state.alive_v
     total = 0.0
     attempts = 0
@@ -903,20 +906,20 @@ def run_pass(
         if not alive_v[i] or not alive_v[j] or _edge_faces(state, i, j, scratch.probe) == 0:
             continue  # the edge went with an earlier move
         attempts += 1
-        outcome = try_collapse(state, scratch, i, j, kappa, c_rep, min_cos, False, result)
+        outcome = try_collapse(state, scratch, i, j, kappa, c_rep, min_cos, unforced, result)
         tally[COLLAPSE, outcome] += 1
         if outcome == ACCEPTED:
             total += result[0]
             tail = _push_star(state, i, queue, tail, capacity, head)
             continue
-        outcome = try_swap(state, scratch, i, j, kappa, c_rep, min_cos, False, result)
+        outcome = try_swap(state, scratch, i, j, kappa, c_rep, min_cos, unforced, result)
         tally[SWAP, outcome] += 1
         if outcome == ACCEPTED:
             total += result[0]
             tail = _push_star(state, i, queue, tail, capacity, head)
             tail = _push_star(state, j, queue, tail, capacity, head)
             continue
-        outcome = try_split(state, scratch, i, j, kappa, c_rep, min_cos, False, result)
+        outcome = try_split(state, scratch, i, j, kappa, c_rep, min_cos, unforced, result)
         tally[SPLIT, outcome] += 1
         if outcome == ACCEPTED:
             total += result[0]

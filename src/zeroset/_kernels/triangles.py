@@ -85,15 +85,17 @@ def closest_point_on_triangle(px, py, pz, t, degenerate):
             return (px - qx) ** 2 + (py - qy) ** 2 + (pz - qz) ** 2, wa, wb, wc
         check_a, check_b, check_c = wa < 0.0, wb < 0.0, wc < 0.0
     # The nearest of the edges to check: 0 is b -> c, 1 is c -> a, 2 is a -> b.
+    # Typed corners: literal ones would compile _closest_on_edge once for each pair.
+    c0, c1, c2 = np.int64(0), np.int64(1), np.int64(2)
     best, edge, s_best = np.inf, 0, 0.0
     if check_a:
-        s_best, best = _closest_on_edge(px, py, pz, t, 1, 2)
+        s_best, best = _closest_on_edge(px, py, pz, t, c1, c2)
     if check_b:
-        s, d2 = _closest_on_edge(px, py, pz, t, 2, 0)
+        s, d2 = _closest_on_edge(px, py, pz, t, c2, c0)
         if d2 < best:
             best, edge, s_best = d2, 1, s
     if check_c:
-        s, d2 = _closest_on_edge(px, py, pz, t, 0, 1)
+        s, d2 = _closest_on_edge(px, py, pz, t, c0, c1)
         if d2 < best:
             best, edge, s_best = d2, 2, s
     if edge == 0:
