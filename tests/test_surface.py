@@ -78,3 +78,23 @@ def _signed_to_sphere(mesh):
 def test_an_unknown_surface_names_the_known_ones(sphere):
     with pytest.raises(InputError, match=r"surface must be one of \('jets', 'planes'\)"):
         reconstruct(sphere.points, surface="rimls")
+
+
+@pytest.mark.slow
+def test_a_third_surface_runs_in_tiles_as_it_runs_whole(sphere, monkeypatch):
+    # The tiles take the surface's kind from the registry and its halo from its reach, as
+    # for the jets; workers in this process see the registry line the test adds.
+    distributed = pytest.importorskip("distributed")
+    from zeroset.tiles import reconstruct_tiled
+
+    monkeypatch.setitem(SURFACES, "imls", "tests.toy_surface:PlaneBlend")
+    whole = reconstruct(sphere.points, surface="imls").mesh
+    with distributed.Client(
+        processes=False, n_workers=2, threads_per_worker=1, dashboard_address=":0"
+    ) as client:
+        tiled = reconstruct_tiled(sphere.points, tiles=(2, 2, 2), client=client, surface="imls")
+    assert tiled.stats["tiles"] == 8
+    assert tiled.stats["surface_function"].startswith("IMLS blend of")
+    assert tiled.mesh.n_faces == whole.n_faces
+    np.testing.assert_allclose(tiled.mesh.vertices, whole.vertices, rtol=0, atol=1e-9)
+    np.testing.assert_array_equal(tiled.mesh.faces, whole.faces)
