@@ -11,9 +11,10 @@ A rule is switched off by a configuration field where one exists, else by settin
 constant or replacing the function that carries it, for the run only. Every run is
 measured by its Chamfer-L1 distance: the mean of the two mean distances, mesh to reference
 and reference to mesh (50,000 area-uniform samples of each surface), where the reference is
-the true surface of a synthetic cloud and the points of a real scan; and by its components,
-boundary loops and seconds. The clouds of ``HELD_OUT`` were never used to choose a
-threshold and are reported apart; keep them out of every future choice. The section between
+the true surface of a synthetic cloud and the points of a real scan; by its components,
+boundary loops and seconds; and on a synthetic cloud by the share of its area that faces as
+the true surface does. The clouds of ``HELD_OUT`` were never used to choose a threshold and
+are reported apart; keep them out of every future choice. The section between
 ``<!-- ablation:begin -->`` and ``<!-- ablation:end -->`` of docs/benchmarks.md is replaced.
 """
 
@@ -38,7 +39,7 @@ import zeroset
 import zeroset.orientation
 from zeroset import topology
 from zeroset.errors import SurfaceWarning, ZerosetError
-from zeroset.evaluate import points_to_mesh_distance, sample_surface
+from zeroset.evaluate import closest_points_on_mesh, points_to_mesh_distance, sample_surface
 from zeroset.io import read_points
 
 #: Points of the synthetic clouds.
@@ -158,6 +159,7 @@ class Row:
     seconds: float | None = None
     failure: str = ""
     fit_support: float | None = None
+    facing: float | None = None
 
 
 def clouds(names, data: Path):
@@ -189,7 +191,7 @@ def run(cloud: Cloud, reference, ablation: Ablation | None, baseline: Row | None
             return Row(failure=f"{type(error).__name__}: {error}")
         seconds = time.perf_counter() - start
     mesh = result.mesh
-    on_mesh, _ = sample_surface(mesh, SAMPLES, rng=0)
+    on_mesh, normals = sample_surface(mesh, SAMPLES, rng=0)
     chamfer = 0.5 * (
         points_to_mesh_distance(reference, mesh).mean() + _to_reference(cloud, on_mesh).mean()
     )
@@ -199,8 +201,19 @@ def run(cloud: Cloud, reference, ablation: Ablation | None, baseline: Row | None
         loops=len(topology.boundary_loops(mesh.faces)),
         seconds=seconds,
         fit_support=result.stats.get("fit_support"),
+        facing=_facing(cloud, on_mesh, normals),
     )
     return row
+
+
+def _facing(cloud: Cloud, positions: np.ndarray, normals: np.ndarray) -> float | None:
+    """Share of the mesh's area (its samples `positions` with their `normals`) that faces
+    the way the true surface does at its closest point; None for a real scan."""
+    if cloud.truth is None:
+        return None
+    _, face, _ = closest_points_on_mesh(positions, cloud.truth)
+    truth = topology.face_area_vectors(cloud.truth.vertices, cloud.truth.faces)[face]
+    return float(np.mean(np.einsum("ij,ij->i", normals, truth) > 0.0))
 
 
 def _reference(cloud: Cloud) -> np.ndarray:
@@ -245,7 +258,8 @@ def measure(names, rules, data: Path, saved: Path) -> dict:
 
 
 def _cell(row: Row, base: Row) -> str:
-    """Change against the default: Chamfer in percent, then components and loops."""
+    """Change against the default: Chamfer in percent, then components and loops, then
+    the points of area that face the other way."""
     if row.failure:
         return "fails"
     change = 100.0 * (row.chamfer / base.chamfer - 1.0)
@@ -254,7 +268,17 @@ def _cell(row: Row, base: Row) -> str:
         parts.append(f"c {row.components - base.components:+d}")
     if row.loops != base.loops:
         parts.append(f"l {row.loops - base.loops:+d}")
+    if _turned(row, base) >= UNCHANGED:
+        parts.append(f"o {100.0 * _turned(row, base):.0f} %")
     return ", ".join(parts)
+
+
+def _turned(row: Row, base: Row) -> float:
+    """Change, against the default, of the share of the area that faces as the true surface
+    does (0 where it is not measured)."""
+    if row.facing is None or base.facing is None:
+        return 0.0
+    return abs(row.facing - base.facing)
 
 
 def _unchanged(row: Row, base: Row) -> bool:
@@ -262,6 +286,7 @@ def _unchanged(row: Row, base: Row) -> bool:
         not row.failure
         and abs(row.chamfer / base.chamfer - 1.0) < UNCHANGED
         and (row.components, row.loops) == (base.components, base.loops)
+        and _turned(row, base) < UNCHANGED
     )
 
 
@@ -315,7 +340,9 @@ def report(results: dict, machine: dict) -> str:
         " says how), against the default run. A cell gives the change of the Chamfer-L1 "
         "distance (mean of mesh-to-reference and reference-to-mesh, the reference being the "
         "true surface of a synthetic cloud and the points of a real scan), then the change of "
-        'components (c) and boundary loops (l) where they change; "fails" where the run '
+        "components (c) and boundary loops (l) where they change, and on synthetic clouds the "
+        "share of the mesh's area that faces the other way than in the default run (o; the "
+        'Chamfer distance does not see which way a mesh faces); "fails" where the run '
         "raised. Synthetic clouds have 20,000 points.",
         "",
         "### Clouds the rules were tuned on",
