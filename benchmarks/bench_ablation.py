@@ -357,7 +357,7 @@ def report(results: dict, machine: dict) -> str:
         *table(results, held),
         "",
         "Rules that change nothing measurable on any cloud (Chamfer within "
-        f"{UNCHANGED:.1%}, same components and loops): "
+        f"{UNCHANGED:.1%}, same components, loops and facing): "
         + (", ".join(quiet) if quiet else "none")
         + ".",
         "",
