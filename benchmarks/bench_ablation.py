@@ -54,8 +54,8 @@ HELD_OUT = {
     "dragon": "stanford_dragon_stand/scans/dragonStandRight_0.ply",
     "terrain": "isprs_terrain_pcl/samp11-utm-ground.pcd",
 }
-#: A change of the Chamfer distance below this share, with the same components and loops,
-#: is no change.
+#: A change of the Chamfer distance below this share, with the same components and loops
+#: and no more of the area facing the other way, is no change.
 UNCHANGED = 0.005
 
 
