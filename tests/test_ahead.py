@@ -75,10 +75,3 @@ def test_the_first_demo_compiles_no_late_kernel_itself(tmp_path):
         )
     }
     assert loaded == {name: (1, 0) for name in loaded} and len(loaded) == 4
-
-
-def test_no_process_unless_wanted():
-    from zeroset._kernels._ahead import late_kernels_ahead
-
-    with late_kernels_ahead(wanted=False) as process:
-        assert process is None

@@ -99,17 +99,15 @@ def compile_phase2_kernels() -> None:
 
 
 @contextmanager
-def late_kernels_ahead(
-    wanted: bool = True, *, optimize: bool = False
-) -> Iterator[subprocess.Popen | None]:
+def late_kernels_ahead(*, optimize: bool = False) -> Iterator[subprocess.Popen | None]:
     """Within the block, a quiet process compiles the late kernels into Numba's cache
-    (`compile_late_kernels`, then with `optimize` `compile_phase2_kernels`), unless not
-    `wanted` or they are cached already; it yields that process or None. A run that reaches
-    a kernel first compiles it itself, as without it; a process still at work when the
-    block ends is stopped (Numba renames each cache file into place once written, so none
-    is left half written)."""
+    (`compile_late_kernels`, then with `optimize` `compile_phase2_kernels`), unless they
+    are cached already; it yields that process or None. A run that reaches a kernel first
+    compiles it itself, as without it; a process still at work when the block ends is
+    stopped (Numba renames each cache file into place once written, so none is left half
+    written)."""
     process = None
-    if wanted and not late_kernels_cached(optimize):
+    if not late_kernels_cached(optimize):
         code = f"import {__name__} as ahead; ahead.compile_late_kernels()"
         if optimize:
             code += "; ahead.compile_phase2_kernels()"
