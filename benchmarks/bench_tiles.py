@@ -28,7 +28,7 @@ from _docfile import replace_section
 from bench_phase1 import DEFAULT_OUTPUT, machine_info, machine_lines
 
 from zeroset import io, topology
-from zeroset.tiles import reconstruct_tiled
+from zeroset.tiles import dask_client, reconstruct_tiled
 
 #: Pipes of the rack: radius and length (m), spacing between neighbours (m), noise (m).
 RADIUS, LENGTH, SPACING, NOISE = 0.15, 8.0, 1.0, 0.002
@@ -50,15 +50,8 @@ def pipe_rack(n: int, seed: int = 0) -> np.ndarray:
 
 
 def run(path: Path, workers: int) -> dict:
-    from distributed import Client, LocalCluster
-
     start = time.perf_counter()
-    with (
-        LocalCluster(
-            n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=":0"
-        ) as cluster,
-        Client(cluster) as client,
-    ):
+    with dask_client(workers=workers) as client:  # the CLI's cluster: cores shared out
         result = reconstruct_tiled(path, tiles="auto", client=client)
     seconds = time.perf_counter() - start
     mesh = result.mesh

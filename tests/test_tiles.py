@@ -3,6 +3,7 @@
 import ast
 import importlib
 import json
+import os
 from pathlib import Path
 
 import distributed
@@ -23,7 +24,7 @@ from zeroset.cli import main
 from zeroset.neighbours import spatial_order
 from zeroset.stages import choose_parameters
 from zeroset.synthetic import sample_sphere, sample_tee, sample_torus, scan_pipe
-from zeroset.tiles import _estimate_sampled, plan_tiles, reconstruct_tiled
+from zeroset.tiles import _estimate_sampled, dask_client, plan_tiles, reconstruct_tiled
 
 
 @pytest.fixture(scope="module")
@@ -95,6 +96,30 @@ def test_tiled_mesh_is_the_untiled_mesh(client, points, tiles, closed):
     lattice = (tiled.mesh.vertices - tiled.offset) / tiled.parameters.cube_size
     cuts = {(a, int(t.owned[0][a])) for t in tiled.tiles for a in range(3) if t.index[a] > 0}
     assert cuts and all(np.any(np.abs(lattice[:, a] - cut) < 1.0) for a, cut in cuts)
+
+
+def test_local_workers_share_the_cores_out():
+    # Each of two local workers runs its kernels and k-d tree queries on half the cores (at
+    # least one): together they ask for the machine's cores, not twice as many.
+    from zeroset.neighbours import query_workers
+
+    with dask_client(workers=2) as client:
+        threads = client.run(query_workers)
+    assert list(threads.values()) == [max(1, (os.cpu_count() or 1) // 2)] * 2
+
+
+def test_no_query_asks_for_every_core():
+    # A k-d tree query with workers=-1 would take every core from inside each worker.
+    package = Path(zeroset.tiles.__file__).parent
+    greedy = [
+        f"{path.relative_to(package)}:{node.lineno}"
+        for path in package.rglob("*.py")
+        for node in ast.walk(ast.parse(path.read_text()))
+        if isinstance(node, ast.keyword)
+        and node.arg == "workers"
+        and isinstance(node.value, ast.UnaryOp)
+    ]
+    assert greedy == []
 
 
 def test_tiles_import_only_public_names():

@@ -16,7 +16,7 @@ import numpy as np
 from ._kernels.density import sector_nearest
 from ._kernels.linalg import eigh_rows
 from ._kernels.normals import centroid_covariance
-from .neighbours import build_tree, off_plane, step_cosines
+from .neighbours import build_tree, off_plane, query_workers, step_cosines
 from .thresholds import (
     ALONG,
     BRIDGE_LENGTH,
@@ -169,7 +169,7 @@ def gap_bridges(points, sectors, *, rho_delta: float, tree=None, normals=None) -
         points[edge],
         k=min(EDGE_K, points.shape[0]),
         distance_upper_bound=BRIDGE_LENGTH * rho_delta,
-        workers=-1,
+        workers=query_workers(),
     )
     length, column = sector_distances(points, indices, distances)
     gap = np.isfinite(length) & (length > rho_delta)

@@ -7,7 +7,7 @@ import numpy as np
 from . import _lattice
 from ._mc_table import CORNER_OFFSETS
 from ._validate import as_points, as_vector3, positive, positive_per_row
-from .neighbours import build_tree
+from .neighbours import build_tree, query_workers
 from .thresholds import CANDIDATES, ZERO_NUDGE
 from .types import DistanceField
 
@@ -103,7 +103,7 @@ def signed_distance(
     positions = origin + cube_size * ijk
     data_tree = build_tree(points) if tree is None else tree
     centroid_tree = build_tree(centroids) if centroid_tree is None else centroid_tree
-    _, nearest = centroid_tree.query(positions, k=CANDIDATES, workers=-1)
+    _, nearest = centroid_tree.query(positions, k=CANDIDATES, workers=query_workers())
     nearest = nearest.reshape(-1, CANDIDATES)
     bridge_tree = build_tree(bridges) if bridges.shape[0] else None
     values = np.full(positions.shape[0], np.nan)
@@ -114,12 +114,14 @@ def signed_distance(
         feet = positions[pending] - f[:, None] * normals[plane]
         reach = radius[plane]
         foot_distance, _ = data_tree.query(
-            feet, distance_upper_bound=float(reach.max(initial=0.0)), workers=-1
+            feet, distance_upper_bound=float(reach.max(initial=0.0)), workers=query_workers()
         )
         found = foot_distance <= reach
         if bridge_tree is not None:
             found[~found] = np.isfinite(
-                bridge_tree.query(feet[~found], distance_upper_bound=bridge_reach, workers=-1)[0]
+                bridge_tree.query(
+                    feet[~found], distance_upper_bound=bridge_reach, workers=query_workers()
+                )[0]
             )
         values[pending[found]] = f[found]
         pending = pending[~found]

@@ -38,7 +38,7 @@ from ._kernels.jets import blend_rows, fit_rows
 from ._kernels.linalg import eigh_rows
 from ._kernels.normals import centroid_covariance
 from ._validate import as_points, positive
-from .neighbours import build_tree
+from .neighbours import build_tree, query_workers
 from .prepare import cell_labels, group_means
 from .surface import Surface
 from .thresholds import (
@@ -144,7 +144,7 @@ class Jets(Frozen, Surface):
 
     def curvature_at(self, positions) -> np.ndarray:
         """The curvature of the jet nearest each position (M, 3)."""
-        return self.curvature[self.tree.query(positions, workers=-1)[1]]
+        return self.curvature[self.tree.query(positions, workers=query_workers())[1]]
 
     def select(self, rows) -> Jets:
         """The jets of `rows` (a mask or indices)."""
@@ -256,7 +256,9 @@ def fit_jets(
         # largest support (and two pilot cells) of a pilot on the rung.
         reach = rho_delta * (np.sqrt(2.0) ** (level + 1) + 4.0 * PILOT_SUPPORT)
         on_rung = build_tree(pilots.centres[pilot_level == level])
-        used = np.isfinite(on_rung.query(pilots.centres, distance_upper_bound=reach, workers=-1)[0])
+        used = np.isfinite(
+            on_rung.query(pilots.centres, distance_upper_bound=reach, workers=query_workers())[0]
+        )
         rows = slice(None) if used.all() else used[pilot_of]
         subset, subset_feet = points[rows], feet[rows]
         cells, counts, spread = group_means(
@@ -267,7 +269,7 @@ def fit_jets(
         if rows.size == 0:
             continue
         k = min(FIT_K, cells.shape[0])
-        distances, indices = build_tree(cells).query(cells[rows], k=k, workers=-1)
+        distances, indices = build_tree(cells).query(cells[rows], k=k, workers=query_workers())
         distances, indices = _own_sheet(
             cells[rows],
             cells,
@@ -313,7 +315,7 @@ def quadric_noise(points, rows, radius: float, *, tree=None) -> float:
     """
     tree = build_tree(points) if tree is None else tree
     k = min(NOISE_K, points.shape[0])
-    distances, indices = tree.query(points[rows], k=k, workers=-1)
+    distances, indices = tree.query(points[rows], k=k, workers=query_workers())
     _, covariances, _ = centroid_covariance(
         points, indices, distances, np.full(indices.shape[0], np.inf)
     )
@@ -383,7 +385,7 @@ def _own_sheet(centres, cells, indices, distances, pilots: Jets, pilot_tree, mar
     cells a fit takes (`MIN_CELLS`) would otherwise stretch a support across. A centre with
     fewer than `MIN_CELLS` neighbours on its own sheet keeps them all.
     """
-    _, pilot = pilot_tree.query(centres, workers=-1)
+    _, pilot = pilot_tree.query(centres, workers=query_workers())
     normal, curvature = pilots.frames[pilot, 2], pilots.curvature[pilot]
     other = np.zeros(indices.shape, dtype=bool)
     for start in range(0, indices.shape[0], SHEET_CHUNK):
@@ -401,7 +403,7 @@ def _own_sheet(centres, cells, indices, distances, pilots: Jets, pilot_tree, mar
 def _nearest_median(tree, values: np.ndarray, positions: np.ndarray) -> np.ndarray:
     """(M,) median of `values` (P,) over the 8 points of `tree` nearest each position."""
     k = min(8, values.size)
-    _, nearest = tree.query(positions, k=k, workers=-1)
+    _, nearest = tree.query(positions, k=k, workers=query_workers())
     return np.median(values[nearest.reshape(-1, k)], axis=1)
 
 
@@ -425,7 +427,7 @@ def orient_jets(jets: Jets, centroids, normals, *, tree=None) -> Jets:
     normals = as_points(normals, "normals")
     k = min(ORIENT_K, centroids.shape[0])
     tree = build_tree(centroids) if tree is None else tree
-    _, plane = tree.query(jets.centres, k=k, workers=-1)
+    _, plane = tree.query(jets.centres, k=k, workers=query_workers())
     plane = plane.reshape(-1, k)
     vote = np.einsum("ij,ikj->i", jets.frames[:, 2], normals[plane])
     sign = np.where(vote < 0.0, -1.0, 1.0)
@@ -461,7 +463,7 @@ def evaluate_jets(jets: Jets, positions, *, k: int = BLEND_K) -> tuple[np.ndarra
     if positions.shape[0] == 0:
         return np.zeros(0), np.zeros((0, 3))
     kk = min(k + 1, jets.centres.shape[0])
-    distances, indices = jets.tree.query(positions, k=kk, workers=-1)
+    distances, indices = jets.tree.query(positions, k=kk, workers=query_workers())
     distances, indices = distances.reshape(-1, kk), indices.reshape(-1, kk)
     return blend_rows(positions, indices, distances, jets.centres, jets.frames, jets.coefficients)
 
@@ -474,7 +476,7 @@ def _pilot_fits(points, feet, rho_delta, supports=(PILOT_SUPPORT,)):
     pilot_of = cell_labels(feet, cell)
     cells, counts, spread = group_means(points, pilot_of)
     k = min(FIT_K, cells.shape[0])
-    distances, indices = build_tree(cells).query(cells, k=k, workers=-1)
+    distances, indices = build_tree(cells).query(cells, k=k, workers=query_workers())
     fits = [
         fit_rows(
             cells,

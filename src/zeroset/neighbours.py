@@ -12,6 +12,7 @@ __all__ = [
     "build_tree",
     "knn",
     "off_plane",
+    "query_workers",
     "restrict",
     "spatial_order",
     "step_cosines",
@@ -21,6 +22,16 @@ __all__ = [
 def build_tree(points: np.ndarray) -> cKDTree:
     """Build a k-d tree over (N, 3) float64 `points` (unbalanced: quick to build)."""
     return cKDTree(points, balanced_tree=False, compact_nodes=False)
+
+
+def query_workers() -> int:
+    """Threads a k-d tree query runs on: as many as the compiled kernels share their rows
+    among (`zeroset._kernels._jit.threads`), so that one setting, ``NUMBA_NUM_THREADS`` or
+    ``numba.set_num_threads``, bounds both (a tiled run's workers get their share of the
+    cores that way)."""
+    from ._kernels._jit import threads
+
+    return threads()
 
 
 #: Bits per axis of the Morton (Z-order) key: 3 x 21 bits fit in int64.
@@ -35,7 +46,7 @@ def ball_pairs(tree: cKDTree, positions: np.ndarray, radius) -> tuple[np.ndarray
     """Every pair of a position (P, 3) and a point of `tree` within `radius` (one, or (P,))
     of it: the position's row (M,) and the point's index (M,), grouped by row, and the
     pairs per row (P,)."""
-    members = tree.query_ball_point(positions, radius, workers=-1, return_sorted=False)
+    members = tree.query_ball_point(positions, radius, workers=query_workers(), return_sorted=False)
     counts = np.fromiter((len(m) for m in members), dtype=np.int64, count=len(members))
     rows = np.repeat(np.arange(len(members)), counts)
     flat = np.fromiter((i for m in members for i in m), dtype=np.int64, count=int(counts.sum()))
@@ -116,7 +127,7 @@ def knn(points: np.ndarray, k: int, *, tree: cKDTree | None = None) -> Neighbour
     """
     tree = build_tree(points) if tree is None else tree
     k = min(k, points.shape[0])
-    distances, indices = tree.query(points, k=k, workers=-1)
+    distances, indices = tree.query(points, k=k, workers=query_workers())
     return Neighbourhoods(
         indices=np.ascontiguousarray(indices.reshape(-1, k), dtype=np.int64),
         distances=np.ascontiguousarray(distances.reshape(-1, k), dtype=np.float64),

@@ -10,7 +10,7 @@ import numpy as np
 from ._kernels.linalg import eigh_rows
 from ._kernels.normals import centroid_covariance
 from ._validate import as_points, positive, positive_per_row
-from .neighbours import build_tree, knn
+from .neighbours import build_tree, knn, query_workers
 from .surface import Surface
 from .types import Frozen, Neighbourhoods, TangentPlanes
 
@@ -122,7 +122,7 @@ class NearestPlanes(Frozen, Surface):
     def evaluate(self, positions) -> tuple[np.ndarray, np.ndarray]:
         """Distance to the nearest plane, and its normal."""
         positions = as_points(positions, "positions", min_rows=0)
-        nearest = self.tree.query(positions, workers=-1)[1]
+        nearest = self.tree.query(positions, workers=query_workers())[1]
         normals = self.normals[nearest]
         values = np.einsum("ij,ij->i", positions - self.centres[nearest], normals)
         return values, normals

@@ -10,7 +10,7 @@ from scipy.sparse.csgraph import breadth_first_order, connected_components, mini
 from ._kernels.orientation import component_extremes, propagate_signs
 from ._validate import as_points, as_viewpoints, positive
 from .errors import InputError
-from .neighbours import build_tree, knn, off_plane, step_cosines
+from .neighbours import build_tree, knn, off_plane, query_workers, step_cosines
 from .thresholds import (
     ABRUPT,
     DECISIVE,
@@ -318,7 +318,9 @@ def _unstack(centroids, normals, component, reach) -> np.ndarray:
         if others.size == 0:
             continue
         distance, nearest = build_tree(centroids[own]).query(
-            centroids[others], distance_upper_bound=float(reach[others].max()), workers=-1
+            centroids[others],
+            distance_upper_bound=float(reach[others].max()),
+            workers=query_workers(),
         )
         closer = (distance <= reach[others]) & (distance < gap[others])
         partner[others[closer]], gap[others[closer]] = own[nearest[closer]], distance[closer]
@@ -434,7 +436,9 @@ def _bridges(centroids, normals, component, reach) -> sparse.csr_matrix:
         if others.size == 0:
             break
         distance, nearest = build_tree(centroids[own]).query(
-            centroids[others], distance_upper_bound=float(reach[others].max()), workers=-1
+            centroids[others],
+            distance_upper_bound=float(reach[others].max()),
+            workers=query_workers(),
         )
         found = (distance <= reach[others]) & (distance < gap[others])
         mate = own[np.where(found, nearest, 0)]

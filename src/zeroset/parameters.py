@@ -8,7 +8,7 @@ from ._validate import positive, require_rng
 from .density import plane_variance, sector_radius
 from .errors import InputError, ReconstructionError
 from .jets import quadric_noise
-from .neighbours import build_tree
+from .neighbours import build_tree, query_workers
 from .thresholds import NOISE_K, SECTORS, SECTORS_NEEDED, SPACING_K, WIDE_ROWS
 from .types import Parameters
 
@@ -110,10 +110,10 @@ def estimate_parameters(
         rows = require_rng(rng).permutation(n)
     rows = np.asarray(rows, dtype=np.int64)[:max_samples]
     kk = min(k + 1, n)
-    distances, indices = tree.query(points[rows], k=kk, workers=-1)
+    distances, indices = tree.query(points[rows], k=kk, workers=query_workers())
     kth = distances[:, -1]
     wide_distances, wide_indices = tree.query(
-        points[rows[:WIDE_ROWS]], k=min(SPACING_K, n), workers=-1
+        points[rows[:WIDE_ROWS]], k=min(SPACING_K, n), workers=query_workers()
     )
     isotropic = float(np.quantile(kth, quantile))
     # A direction with no neighbour among the SPACING_K counts as the farthest one.

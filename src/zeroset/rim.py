@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .neighbours import ball_pairs, build_tree
+from .neighbours import ball_pairs, build_tree, query_workers
 from .repair import fan_samples
 from .thresholds import (
     BAND,
@@ -95,7 +95,7 @@ def data_edge(
     """
     tree = build_tree(points) if tree is None else tree
     reach = radii if reach is None else reach
-    gap, nearest = tree.query(vertices, workers=-1)
+    gap, nearest = tree.query(vertices, workers=query_workers())
     radius = DISC * radii[nearest]
     rows, flat, counts = ball_pairs(tree, vertices, radius)
     inside = np.maximum(counts, 1)[:, None]
@@ -138,7 +138,7 @@ def empty_balls(mesh: Mesh, normals, tree, least, *, planes=None) -> tuple[np.nd
     plane the points of the object and of the wall behind seem to surround a ball that lies
     beside the object, in no hole of it."""
     least = np.asarray(least, dtype=np.float64)
-    gap, nearest = tree.query(mesh.vertices, workers=-1)
+    gap, nearest = tree.query(mesh.vertices, workers=query_workers())
     start = np.flatnonzero(gap >= (1.0 - CLIMB) * least[nearest])
     centre, normal = mesh.vertices[start], normals[start]
     depth, near = gap[start], nearest[start]
@@ -150,7 +150,7 @@ def empty_balls(mesh: Mesh, normals, tree, least, *, planes=None) -> tuple[np.nd
         away /= np.maximum(np.linalg.norm(away, axis=1), 1e-300)[:, None]
         step = np.minimum(step, reach - travel)
         trial = centre + step[:, None] * away
-        trial_depth, trial_near = tree.query(trial, workers=-1)
+        trial_depth, trial_near = tree.query(trial, workers=query_workers())
         better = trial_depth > depth
         centre[better], depth[better] = trial[better], trial_depth[better]
         near[better] = trial_near[better]
@@ -178,7 +178,7 @@ def no_empty_ball(points, least, *, tree=None):
     def closable(ring: np.ndarray) -> bool:
         nonlocal tree
         tree = build_tree(points) if tree is None else tree
-        gap, nearest = tree.query(fan_samples(ring), workers=-1)
+        gap, nearest = tree.query(fan_samples(ring), workers=query_workers())
         return bool(np.all(gap < least[nearest]))
 
     return closable
@@ -398,12 +398,14 @@ def trim_to_data(
         ``rim_edges_cut`` and ``rim_hole_vertices`` (vertices in an empty ball).
     """
     tree = build_tree(points)
-    gap, nearest = tree.query(mesh.vertices, workers=-1)
+    gap, nearest = tree.query(mesh.vertices, workers=query_workers())
     tested = gap > FAR * radii[nearest]
     rim = np.unique(boundary_edges(mesh.faces))
     if rim.size:
         distance, _ = build_tree(mesh.vertices[rim]).query(
-            mesh.vertices, distance_upper_bound=BAND * radii.max() + cube_size, workers=-1
+            mesh.vertices,
+            distance_upper_bound=BAND * radii.max() + cube_size,
+            workers=query_workers(),
         )
         tested |= np.isfinite(distance)
     normals = vertex_normals(mesh)

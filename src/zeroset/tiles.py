@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import logging
 import math
+import os
 import time
 import warnings
 from contextlib import contextmanager
@@ -26,7 +27,7 @@ from ._validate import as_points
 from .config import ReconstructionConfig
 from .contour import keyed_marching_cubes
 from .errors import InputError, ReconstructionError, SurfaceWarning
-from .neighbours import build_tree, spatial_order
+from .neighbours import build_tree, query_workers, spatial_order
 from .orientation import agree_parts, part_extremes
 from .parameters import neighbours_read
 from .prepare import CHUNK_POINTS
@@ -295,13 +296,26 @@ def plan_tiles(
 @contextmanager
 def dask_client(scheduler: str | None = None, workers: int | None = None):
     """A Dask client of the scheduler at address `scheduler`, or of a local cluster of
-    `workers` single-threaded processes (one per core by default), closed on exit."""
+    `workers` single-threaded processes (one per core by default), closed on exit.
+
+    Each local worker's compiled kernels and k-d tree queries share its part of the cores
+    (``NUMBA_NUM_THREADS``, `zeroset.neighbours.query_workers`): the cores over the workers,
+    at least one, so that the workers' threads add up to the cores rather than each asking
+    for all of them. Workers of another scheduler take ``NUMBA_NUM_THREADS`` from their own
+    environment."""
     distributed = require("distributed", "tiled reconstruction (--tiles)")
+    import dask
+
     if scheduler is not None:
         with distributed.Client(scheduler) as client:
             yield client
         return
+    cores = os.cpu_count() or 1
+    share = max(1, cores // (workers or cores))
+    # Set before each worker process starts: Numba reads it once, on import.
+    spawn = {"distributed.nanny.pre-spawn-environ.NUMBA_NUM_THREADS": str(share)}
     with (
+        dask.config.set(spawn),
         distributed.LocalCluster(
             n_workers=workers,
             processes=True,
@@ -557,17 +571,17 @@ def _estimate_sampled(source, n_points, offset, config, chunk_points=CHUNK_POINT
     samples = samples[rng.permutation(len(samples))[:SAMPLES]] - offset
     wanted = neighbours_read(config.radius_k)
     tree = build_tree(samples)
-    spacing = float(np.median(tree.query(samples, k=2, workers=-1)[0][:, 1]))
+    spacing = float(np.median(tree.query(samples, k=2, workers=query_workers())[0][:, 1]))
     reach = 2.0 * spacing * np.sqrt(wanted * len(samples) / n_points)
     for _ in range(READ_ROUNDS):
         near = []
         for chunk in _chunks(source, config.crop, chunk_points):
             chunk = chunk - offset
-            gap = tree.query(chunk, distance_upper_bound=reach, workers=-1)[0]
+            gap = tree.query(chunk, distance_upper_bound=reach, workers=query_workers())[0]
             near.append(chunk[np.isfinite(gap)])
         local = np.concatenate(near)
         read = build_tree(local)
-        distances, rows = read.query(samples, k=min(wanted, len(local)), workers=-1)
+        distances, rows = read.query(samples, k=min(wanted, len(local)), workers=query_workers())
         whole = distances[:, -1] <= reach
         if whole.mean() >= WHOLE_NEIGHBOURHOODS:
             return choose_parameters(local, config, tree=read, rows=rows[whole, 0])[0]

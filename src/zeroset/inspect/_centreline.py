@@ -21,6 +21,7 @@ from scipy.spatial import cKDTree
 from .._validate import require_rng
 from ..errors import InputError
 from ..evaluate import sample_surface
+from ..neighbours import query_workers
 from ..topology import boundary_edges, face_area_vectors, vertex_normals
 from ..types import Mesh
 from ._frame import UP, clock_angles, transport_frames, unit
@@ -122,7 +123,7 @@ class Pipe:
         one radius) get NaN.
         """
         x = np.asarray(x, dtype=np.float64).reshape(-1, 3)
-        _, nearest = cKDTree(self.centres).query(x, workers=-1)
+        _, nearest = cKDTree(self.centres).query(x, workers=query_workers())
         along = self.axial[nearest] + np.einsum(
             "ij,ij->i", x - self.centres[nearest], self.tangents[nearest]
         )
