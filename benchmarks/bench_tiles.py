@@ -4,12 +4,13 @@ section of docs/benchmarks.md.
 Run by hand from the repository root (needs the ``tiles`` extra; about 15 minutes and
 8 GiB of disk-backed memory on 2 cores)::
 
-    python benchmarks/bench_tiles.py [--points 20000000]
+    python benchmarks/bench_tiles.py [--points 20000000] [--tiles 2x2x1]
 
 The cloud is a pipe rack: eight open pipes of radius 0.15 m and 8 m length, four along x
 and four along y a metre above them, sampled uniformly with 2 mm of noise (seeded), written
-as a binary PLY. Each run starts a local cluster of one worker process per core asked
-for, one thread each, and reconstructs the file with ``tiles="auto"``: every tile reads its
+as a binary PLY. Each run starts the CLI's local cluster (`zeroset.tiles.dask_client`) of
+the workers asked for, one task at a time each and the cores shared out among them, and
+reconstructs the file with ``tiles="auto"`` (or the grid given): every tile reads its
 own points from the file (memory-mapped, a chunk at a time), so the client never holds
 the cloud. Wall time is for the whole run; peak memory is each worker process's resident
 peak, as the process reports it.
@@ -49,10 +50,10 @@ def pipe_rack(n: int, seed: int = 0) -> np.ndarray:
     )
 
 
-def run(path: Path, workers: int) -> dict:
+def run(path: Path, workers: int, tiles="auto") -> dict:
     start = time.perf_counter()
     with dask_client(workers=workers) as client:  # the CLI's cluster: cores shared out
-        result = reconstruct_tiled(path, tiles="auto", client=client)
+        result = reconstruct_tiled(path, tiles=tiles, client=client)
     seconds = time.perf_counter() - start
     mesh = result.mesh
     return {
@@ -76,7 +77,7 @@ def _share(value: float | None) -> str:
     return "no seams" if value is None else f"{value:.2%}"
 
 
-def section(n_points: int, runs: list[dict], write_seconds: float) -> str:
+def section(n_points: int, runs: list[dict], write_seconds: float, tiles="auto") -> str:
     one = next(r for r in runs if r["workers"] == 1)
     rows = []
     for r in runs:
@@ -89,18 +90,21 @@ def section(n_points: int, runs: list[dict], write_seconds: float) -> str:
             f"{r['grown']} / {r['gap']:.1e} |"
         )
     client_peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    grid = tiles if tiles == "auto" else "x".join(map(str, tiles))
     return "\n".join(
         [
-            "## Tiled on Dask: a 20M-point pipe network",
+            f"## Tiled on Dask: a {n_points / 1e6:g}M-point pipe network",
             "",
             "```",
-            f"python benchmarks/bench_tiles.py --points {n_points}",
+            f"python benchmarks/bench_tiles.py --points {n_points}"
+            + ("" if tiles == "auto" else f" --tiles {grid}"),
             "```",
             "",
             f"{n_points:,} points on a pipe rack (eight open pipes, radius 0.15 m, 8 m long, in",
             "two layers a metre apart, 2 mm noise), a binary PLY read by every tile for its own",
-            f'box (writing it took {write_seconds:.0f} s). `tiles="auto"` aims at 2M points a',
-            "tile. Passes (s): bounds of the file, parameters (measured at 20,000 points drawn",
+            f"box (writing it took {write_seconds:.0f} s). "
+            + ('`tiles="auto"` aims at 2M points a tile.' if tiles == "auto" else f"Tiles {grid}.")
+            + " Passes (s): bounds of the file, parameters (measured at 20,000 points drawn",
             "in one pass over the file, on the points near them read in a second), fitting and",
             "orienting planes, contouring the owned cubes, welding, then the stages run on the",
             "welded mesh. Peak memory is each worker process's resident peak (MiB). Flips: tile",
@@ -125,8 +129,10 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--points", type=int, default=20_000_000)
     parser.add_argument("--workers", type=int, nargs="+", default=[1, 2])
+    parser.add_argument("--tiles", default="auto", help='"auto" or a grid such as 2x2x1')
     parser.add_argument("--output", type=Path, default=DEFAULT_OUTPUT)
     args = parser.parse_args()
+    tiles = args.tiles if args.tiles == "auto" else tuple(map(int, args.tiles.split("x")))
     with tempfile.TemporaryDirectory() as folder:
         path = Path(folder) / "rack.ply"
         start = time.perf_counter()
@@ -134,9 +140,9 @@ def main() -> None:
         write_seconds = time.perf_counter() - start
         runs = []
         for workers in args.workers:
-            runs.append(run(path, workers))
+            runs.append(run(path, workers, tiles))
             print(runs[-1], flush=True)
-    text = section(args.points, runs, write_seconds)
+    text = section(args.points, runs, write_seconds, args.tiles)
     replace_section(args.output, "tiles", text)
     print(text)
 
