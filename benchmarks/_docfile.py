@@ -20,6 +20,7 @@ SECTIONS = (
     "phase1",
     "phase2",
     "cubes",
+    "simplify",
     "report",
     "large",
     "tiles",

@@ -130,7 +130,7 @@ def test_supports_shrink_to_follow_detail(monkeypatch):
 
 def test_vertices_lie_on_the_blended_surface():
     result = reconstruct(_sample("torus", 0.13, 20_000, 0.002).points)
-    values, _ = evaluate_jets(result.surface, result.mesh.vertices - result.offset)
+    values, _ = evaluate_jets(result.surface, result.dense_mesh.vertices - result.offset)
     assert np.abs(values).max() < 1e-3 * 0.13
     assert result.stats["refine_levels"] >= 1
 
@@ -173,11 +173,15 @@ def test_refined_edges_sag_no_further_than_the_tolerance():
     sample = _sample("pipe", 0.25, 5_000, 0.0)
     coarse = reconstruct(sample.points, refine_levels=0)
     noise = coarse.parameters.noise
-    unrefined = Mesh(vertices=coarse.mesh.vertices - coarse.offset, faces=coarse.mesh.faces)
+    unrefined = Mesh(
+        vertices=coarse.dense_mesh.vertices - coarse.offset, faces=coarse.dense_mesh.faces
+    )
     assert sagging_edges(unrefined, coarse.surface, noise=noise).mean() > 0.5
     refined = reconstruct(sample.points)
     assert 1 <= refined.stats["refine_levels"] <= MAX_LEVELS
-    final = Mesh(vertices=refined.mesh.vertices - refined.offset, faces=refined.mesh.faces)
+    final = Mesh(
+        vertices=refined.dense_mesh.vertices - refined.offset, faces=refined.dense_mesh.faces
+    )
     assert not sagging_edges(final, refined.surface, noise=noise).any()
 
 

@@ -112,11 +112,19 @@ def test_two_disjoint_objects_are_both_reconstructed(spheres):
 def test_huge_coordinates_give_the_same_mesh_translated():
     points = sample_cylinder(8_000, noise=0.002, rng=6).points
     shift = np.array([6e5, 5e6, 300.0])
-    near = reconstruct(points).mesh
-    far = reconstruct(points + shift).mesh
-    assert far.faces.shape == near.faces.shape
-    np.testing.assert_array_equal(far.faces, near.faces)
-    np.testing.assert_allclose(far.vertices - shift, near.vertices, rtol=0, atol=1e-6)
+    near = reconstruct(points)
+    far = reconstruct(points + shift)
+    assert far.dense_mesh.faces.shape == near.dense_mesh.faces.shape
+    np.testing.assert_array_equal(far.dense_mesh.faces, near.dense_mesh.faces)
+    np.testing.assert_allclose(
+        far.dense_mesh.vertices - shift, near.dense_mesh.vertices, rtol=0, atol=1e-6
+    )
+    # The simplification decides at the tolerance, where the rounding of the far frame
+    # (1e-9) may tip a collapse: the same surface, not the same triangles.
+    assert far.mesh.n_faces == pytest.approx(near.mesh.n_faces, rel=0.05)
+    tolerance = near.stats["tolerance"]
+    away = points_to_mesh_distance(far.mesh.vertices - shift, near.dense_mesh)
+    assert away.max() <= tolerance
 
 
 def test_same_seed_same_mesh_and_sampling_follows_the_seed():
@@ -172,6 +180,7 @@ def test_every_stage_is_timed(pipe):
         "repair",
         "rim",
         "refine",
+        "simplify",
     }
     assert all(seconds >= 0 for seconds in result.timings.values())
     planes = reconstruct(sample.points[:5000], surface="planes")

@@ -578,9 +578,12 @@ def _run_reconstruct(args: argparse.Namespace) -> int:
             progress=not args.quiet,
         )
         inspection = None
+        # The inspection measures the dense mesh, as fine as the surface's curvature needs,
+        # unless phase 2 made the mesh.
+        measured = result.mesh if args.optimize else result.dense_mesh
         if args.inspect is not None:
             sensors = config.viewpoint if cloud.viewpoints is None else cloud.viewpoints
-            inspection = _inspect(args, result.mesh, cloud.points, sensors)
+            inspection = _inspect(args, measured, cloud.points, sensors)
         code = _finish(
             result,
             args,
@@ -595,7 +598,7 @@ def _run_reconstruct(args: argparse.Namespace) -> int:
             inspection=inspection,
         )
     if inspection is not None:
-        _write_inspection(args, args.inspect, result.mesh, cloud.points, *inspection)
+        _write_inspection(args, args.inspect, measured, cloud.points, *inspection)
     return code
 
 

@@ -71,6 +71,11 @@ class ReconstructionConfig:
         None,
         "split every triangle edge this many times (default: split where a chord sags, jets only)",
     )
+    tolerance: float | None = _opt(
+        None,
+        "largest distance of the output's triangles from the dense mesh, data units (default: "
+        "twice the surface's own uncertainty; 0: the dense mesh)",
+    )
     rim: str = _opt(
         "data",
         "open boundaries: data (cut where the data stop, within a fraction of the spacing) or "
@@ -109,6 +114,8 @@ class ReconstructionConfig:
             raise InputError(f"fit_support must be positive; got {self.fit_support!r}")
         if self.refine_levels is not None and not 0 <= self.refine_levels <= 4:
             raise InputError(f"refine_levels must lie in 0..4; got {self.refine_levels!r}")
+        if self.tolerance is not None and not 0.0 <= self.tolerance < float("inf"):
+            raise InputError(f"tolerance must be a distance >= 0; got {self.tolerance!r}")
         if self.k_max <= self.min_neighbours or self.k_max < self.k_min:
             raise InputError(
                 f"k_max must exceed min_neighbours and be at least k_min; got k_max={self.k_max}, "

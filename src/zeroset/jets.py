@@ -63,6 +63,9 @@ from .thresholds import (
 )
 from .types import Frozen
 
+#: Coefficients of a jet's quadric, a0 ... a5: the parameters its height is fitted with.
+QUADRIC_TERMS = 6
+
 __all__ = [
     "Jets",
     "evaluate_jets",
@@ -94,6 +97,8 @@ class Jets(Frozen, Surface):
         (`zeroset._kernels.jets.COEFFICIENTS`).
     radii : (J,) float64
         Support radius of each jet, in data units.
+    mass : (J,) float64
+        Points within each jet's support (their weights summed).
     notes : tuple of str
         How the supports were chosen.
     """
@@ -105,6 +110,7 @@ class Jets(Frozen, Surface):
     frames: np.ndarray
     coefficients: np.ndarray
     radii: np.ndarray
+    mass: np.ndarray
     notes: tuple[str, ...] = field(default=())
 
     @property
@@ -142,6 +148,13 @@ class Jets(Frozen, Surface):
         """`evaluate_jets`."""
         return evaluate_jets(self, positions)
 
+    def uncertainty(self, noise: float) -> float:
+        """The standard error of a jet's height, median over the jets, in data units:
+        ``noise sqrt(6 / n)`` for a quadric's six coefficients fitted to n points of noise
+        `noise` (the mean leverage of a least-squares fit is its parameters over its
+        points, so its heights at the points vary by ``noise^2 6 / n`` on average)."""
+        return float(noise) * float(np.sqrt(QUADRIC_TERMS / np.median(self.mass)))
+
     def curvature_at(self, positions) -> np.ndarray:
         """The curvature of the jet nearest each position (M, 3)."""
         return self.curvature[self.tree.query(positions, workers=query_workers())[1]]
@@ -154,6 +167,7 @@ class Jets(Frozen, Surface):
             frames=self.frames[rows],
             coefficients=self.coefficients[rows],
             radii=self.radii[rows],
+            mass=self.mass[rows],
         )
 
     @classmethod
@@ -164,6 +178,7 @@ class Jets(Frozen, Surface):
             frames=np.concatenate([j.frames for j in parts]),
             coefficients=np.concatenate([j.coefficients for j in parts]),
             radii=np.concatenate([j.radii for j in parts]),
+            mass=np.concatenate([j.mass for j in parts]),
             notes=parts[0].notes,
         )
 
@@ -367,9 +382,14 @@ def _cell(level: int, rho_delta: float) -> float:
 
 def _jets(fit, note: str) -> Jets:
     """A Jets of the output of `fit_rows`."""
-    centres, frames, coefficients, radii, *_ = fit
+    centres, frames, coefficients, radii, mass, *_ = fit
     return Jets(
-        centres=centres, frames=frames, coefficients=coefficients, radii=radii, notes=(note,)
+        centres=centres,
+        frames=frames,
+        coefficients=coefficients,
+        radii=radii,
+        mass=mass,
+        notes=(note,),
     )
 
 

@@ -23,6 +23,7 @@ from .stages import (
     mesh_stats,
     optimize_surface,
     prepare_points,
+    simplify,
     stage_names,
     warn_surface_changes,
 )
@@ -59,6 +60,10 @@ class Reconstruction:
     config : ReconstructionConfig
     initial_mesh : Mesh
         Phase 1's mesh, in the input's coordinates (the same as `mesh` without phase 2).
+    dense_mesh : Mesh
+        Phase 1's mesh before stage "simplify" (`zeroset.simplify`), in the input's
+        coordinates: its vertices on the surface, its triangles as small as the surface's
+        curvature needs (the same as `initial_mesh` with ``tolerance=0``).
     optimization : OptimizationResult or None
         Phase 2's energies, moves and parameters, when it ran.
     stats : dict
@@ -77,6 +82,7 @@ class Reconstruction:
     field: DistanceField
     config: ReconstructionConfig
     initial_mesh: Mesh
+    dense_mesh: Mesh
     optimization: OptimizationResult | None = None
     stats: dict = field(default_factory=dict)
     timings: dict = field(default_factory=dict)
@@ -107,8 +113,9 @@ def reconstruct(
         Sensor position of every point, a row of NaN where not known; normals are oriented
         towards it (:func:`zeroset.orientation.orient_normals`).
     optimize : bool
-        Run phase 2 (:func:`zeroset.optimize`, Hoppe et al. 1993) on phase 1's mesh with
-        every point left after cropping, including those that sampling kept from phase 1.
+        Run phase 2 (:func:`zeroset.optimize`, Hoppe et al. 1993) on phase 1's dense mesh
+        with every point left after cropping, including those that sampling kept from
+        phase 1; phase 2 then chooses the triangles, and stage "simplify" does not run.
     progress : bool
         Show a progress bar when stderr is a terminal.
 
@@ -133,6 +140,8 @@ def reconstruct(
     0
     """
     config = (config or ReconstructionConfig()).with_overrides(**overrides)
+    if optimize and config.tolerance:
+        raise InputError("tolerance applies to phase 1's mesh; phase 2 (optimize) takes none")
     points, viewpoints = _checked(points, viewpoints)
     optimization = None
     with Stages(stage_names(config, optimize), show=progress) as stages:
@@ -145,10 +154,13 @@ def reconstruct(
         )
         mesh = stages.run("contour", contour, field_, fitted, normals, parameters, config)
         support = data_support(fitted, bridges, parameters)
-        first = finish(mesh, support, surface, parameters, config, stages)
+        dense = finish(mesh, support, surface, parameters, config, stages)
+        first = dense
+        if surface.smooth and not optimize:
+            first = stages.run("simplify", simplify, dense, surface, parameters, config)
         if optimize:
             optimization = stages.run(
-                OPTIMIZE_STAGE, optimize_surface, first, points, cloud.offset, config, progress
+                OPTIMIZE_STAGE, optimize_surface, dense, points, cloud.offset, config, progress
             )
     initial_mesh = first.translated(cloud.offset)
     mesh = initial_mesh if optimization is None else optimization.mesh.translated(cloud.offset)
@@ -158,6 +170,7 @@ def reconstruct(
     return Reconstruction(
         mesh=mesh,
         initial_mesh=initial_mesh,
+        dense_mesh=initial_mesh if first is dense else dense.translated(cloud.offset),
         optimization=optimization,
         offset=cloud.offset,
         points=fitted.points,

@@ -215,14 +215,21 @@ def format_report(report: dict) -> str:
 
 
 def _surface_lines(stats: dict) -> list[str]:
-    """Which surface function was contoured (`zeroset.surface.Surface.describe`), and how
-    the vertices were refined onto it."""
+    """Which surface function was contoured (`zeroset.surface.Surface.describe`), how the
+    vertices were refined onto it, and how the mesh was simplified within its tolerance."""
     lines = [f"surface     {stats['surface_function']}"]
     if "refine_levels" in stats:
         lines.append(
             f"refine      vertices projected onto the surface ({stats['projection_held']:,} held "
             f"back so that no triangle turns over); {stats['edges_split']:,} edges split in "
             f"{stats['refine_levels']} round(s) where their chords sagged"
+        )
+    if stats.get("tolerance"):
+        lines.append(
+            f"simplify    {stats['dense_faces']:,} triangles -> {stats['faces']:,} within "
+            f"{stats['tolerance']:.4g} of them ({stats['tolerance_note']}); "
+            f"{stats['simplify_collapses']:,} edges collapsed, {stats['simplify_splits']:,} "
+            f"split where a triangle strayed"
         )
     return lines
 

@@ -40,6 +40,7 @@ from .prepare import cell_labels, crop, drop_outliers, group_means, group_viewpo
 from .refine import refine_mesh
 from .repair import fill_small_holes, remove_small_components, split_nonmanifold_vertices
 from .rim import no_empty_ball, trim_to_data
+from .simplify import choose_tolerance, simplify_mesh
 from .surface import Surface, surface_kind
 from .thresholds import (
     BRIDGE_REACH,
@@ -81,6 +82,7 @@ __all__ = [
     "repair",
     "trim_rim",
     "refine",
+    "simplify",
     "optimize_surface",
     "fit_stats",
     "mesh_stats",
@@ -103,9 +105,10 @@ STAGES = (
     "repair",
     "rim",
     "refine",
+    "simplify",
 )
 #: Stages that run only for a smooth local surface, and only for rims at the data.
-SMOOTH_STAGES = ("refine",)
+SMOOTH_STAGES = ("refine", "simplify")
 RIM_STAGES = ("rim",)
 OPTIMIZE_STAGE = "optimize"
 #: Largest coordinate magnitude and smallest extent accepted: squared distances between
@@ -120,7 +123,9 @@ def stage_names(config: ReconstructionConfig, optimize: bool = False) -> tuple[s
     names = tuple(
         s
         for s in STAGES
-        if (smooth or s not in SMOOTH_STAGES) and (config.rim == "data" or s not in RIM_STAGES)
+        if (smooth or s not in SMOOTH_STAGES)
+        and (config.rim == "data" or s not in RIM_STAGES)
+        and not (optimize and s == "simplify")  # phase 2 chooses the triangles instead
     )
     return names + ((OPTIMIZE_STAGE,) if optimize else ())
 
@@ -597,6 +602,19 @@ def refine(mesh: Mesh, surface: Surface, parameters: Parameters, config) -> tupl
     return refine_mesh(mesh, surface, noise=parameters.noise, levels=config.refine_levels)
 
 
+def simplify(mesh: Mesh, surface: Surface, parameters: Parameters, config):
+    """Stage "simplify": few triangles within the tolerance of the dense `mesh`
+    (`zeroset.simplify`), the tolerance chosen from the `surface` unless given."""
+    tolerance, note = choose_tolerance(surface, parameters.quadric_noise, config.tolerance)
+    simple, counts = simplify_mesh(mesh, tolerance)
+    return simple, {
+        "tolerance": tolerance,
+        "tolerance_note": note,
+        "dense_faces": mesh.n_faces,
+        **counts,
+    }
+
+
 def optimize_surface(mesh: Mesh, points, offset, config, progress: bool):
     """Stage "optimize": phase 2 on `mesh` (local frame) with every point (N, 3) of the
     input that the crop keeps."""
@@ -679,6 +697,12 @@ def surface_changes(stats: dict, config: ReconstructionConfig) -> list[str]:
             f"the sensor positions and the spanning tree disagree {where} (over "
             f"{UNTRUSTED:.0%} of them): the tree orients the normals, the sensors only set "
             "each component's sign; check the viewpoints"
+        )
+    if stats.get("simplify_strays"):
+        messages.append(
+            f"{stats['simplify_strays']} triangle(s) lie farther than the tolerance "
+            f"{stats['tolerance']:.4g} from the dense mesh after every check round; "
+            "tolerance=0 (--tolerance 0) keeps the dense mesh"
         )
     return messages
 

@@ -63,6 +63,13 @@ SCHEMA = {
     "refine_levels": Count("rounds of edge splits", "largest"),
     "edges_split": Count("edges split where their chords sagged"),
     "projection_held": Count("vertices held back so that no triangle turned over"),
+    # simplify
+    "tolerance": Count("largest distance of the mesh from the dense mesh, data units", "once"),
+    "tolerance_note": Count("how the tolerance was chosen", "once"),
+    "dense_faces": Count("faces of the dense mesh before simplification", "once"),
+    "simplify_collapses": Count("edges collapsed within the tolerance"),
+    "simplify_splits": Count("edges split where a triangle strayed past the tolerance"),
+    "simplify_strays": Count("triangles still farther than the tolerance, after the checks"),
     # the mesh
     "vertices": Count("vertices of the mesh", "once"),
     "faces": Count("faces of the mesh", "once"),

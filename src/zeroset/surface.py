@@ -85,6 +85,12 @@ class Surface(ABC):
     def evaluate(self, positions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Signed distance (M,) and its gradient (M, 3) at `positions` (M, 3)."""
 
+    def uncertainty(self, noise: float) -> float | None:
+        """Typical standard error of the surface's position where points of noise level
+        `noise` (data units) were fitted, in data units; None where this kind does not
+        know it (then no tolerance is chosen from it)."""
+        return None
+
     @abstractmethod
     def curvature_at(self, positions: np.ndarray) -> np.ndarray:
         """(M,) largest absolute principal curvature near each of `positions`, in 1 / data

@@ -229,3 +229,23 @@ PROJECTION_STEPS = 2
 #: larger. **Chosen** on the 20k pipe and the Method of Cubes benchmark's six clouds.
 MAX_LEVELS = 3
 CHORD_RELATIVE, CHORD_NOISE = 1e-4, 0.1
+
+# -- Simplification (R46, R47) ---------------------------------------------------------
+
+#: R46: the default tolerance, in standard errors of the fitted surface's height
+#: (`Jets.uncertainty`). **Derived**: a mesh within two standard errors of the fit is
+#: within the fit's own 95 % band of the truth wherever the fit is.
+UNCERTAINTIES = 2.0
+#: R46: no collapse may fold two neighbouring faces further apart than this (degrees),
+#: unless they were folded as much before, nor leave a sample on a face turned further
+#: than this from the sample's own normal. **Chosen** (not recorded); with the fold test
+#: alone a face at the 30k pipe's rim turned 64 degrees from the wall.
+MAX_FOLD_DEGREES_SIMPLIFY = 30.0
+#: R46, R47: the samples, and the points each triangle is checked at, are held this share
+#: of the tolerance from the other mesh, since the meshes part a little further between
+#: them. **Chosen** on the 60k cylinder (a median stray 5 % over the tolerance at 1.0) and
+#: random height fields (7 % past the tolerance between the points at 1.0).
+SAMPLE_MARGIN = 0.8
+#: R47: rounds of the check of every triangle against the dense mesh, each splitting the
+#: longest edge of every triangle that strays. **Chosen** (not recorded).
+CHECK_ROUNDS = 4

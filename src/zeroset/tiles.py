@@ -43,6 +43,7 @@ from .stages import (
     fit,
     local_viewpoints,
     mesh_stats,
+    simplify,
     warn_surface_changes,
 )
 from .stats import add_counts, declared
@@ -474,6 +475,8 @@ def reconstruct_tiled(
     stages = Stages((), show=False)
     support = DataSupport.concatenate([piece.support for piece in pieces])
     mesh = finish(mesh, support, surface, parameters, config, stages)
+    if surface.smooth:
+        mesh = stages.run("simplify", simplify, mesh, surface, parameters, config)
     timings.update(stages.timings)
     add_counts(stats, stages.counts)
     mesh = mesh.translated(offset)

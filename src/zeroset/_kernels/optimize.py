@@ -356,9 +356,10 @@ def _gather_points(state, region, n_region, out):
 
 @jit
 def _project_local(
-    state, scratch, pts, new_faces, n_new, near, h, best_face, best_bary, best_d2
+    state, scratch, pts, new_faces, n_new, near, h, best_face, best_bary, best_d2, limit2=np.inf
 ):  # fmt: skip
-    # Project every point in pts onto the nearest candidate face; returns the energy.
+    # Project every point in pts onto the nearest candidate face; returns the energy, or
+    # inf as soon as a point lies farther than sqrt(limit2) (the rest then unprojected).
     # best_face holds a first guess per point (-1: none). A point with a guess g is
     # projected onto the faces t with near[g, t] only, g first, so that every other face
     # whose bounding sphere is no nearer is skipped. Fewer faces can only over-estimate
@@ -411,6 +412,8 @@ def _project_local(
                 best_bary[q, 0], best_bary[q, 1], best_bary[q, 2] = u, v, w
         best_d2[q] = best
         energy += best
+        if best > limit2:
+            return np.inf
     return energy
 
 
@@ -544,50 +547,49 @@ def _fold_ok(state, scratch, region, n_region, new_faces, n_new, h, min_cos):
 
 
 @jit
-def try_collapse(state, scratch, i, j, kappa, c_rep, min_cos, force, result):
-    """Collapse edge (i, j) into one vertex if that is legal and lowers the energy.
-
-    `result` (2,) float64 gets the energy change and the number of the surviving vertex.
-    Returns an outcome code. With `force`, any legal move is made.
-    """
-    V, F, vf, deg = state.V, state.F, state.vf, state.deg
-    alive_v, alive_f = state.alive_v, state.alive_f
+def _collapse_region(state, scratch, i, j):
+    # Whether edge (i, j) may collapse (Hoppe 1993, §4.1), and what it changes. Fills
+    # scratch.edge (the faces on the edge), ring_i, ring_j, region (the faces around i or
+    # j), new_faces and global_face (the region's faces that stay, i and j -> H) and ring
+    # (the neighbours of the new vertex). Returns n_edge (0: illegal), n_i, n_j, n_region,
+    # n_new, n_ring, boundary_i, boundary_j.
+    F, vf, deg = state.F, state.vf, state.deg
     width = vf.shape[1]
     edge = scratch.edge
     n_edge = _manifold_edge(state, i, j, edge)
-    if n_edge == 0:
-        return ILLEGAL_TOPOLOGY
     ring_i, ring_j = scratch.ring_i, scratch.ring_j
+    # Counters start as np.int64: from a literal 0, Numba would first compile every callee
+    # for Literal[int](0), then again for int64.
+    zero = np.int64(0)
+    if n_edge == 0:
+        return zero, zero, zero, zero, zero, zero, False, False
     n_i, boundary_i = _neighbours(state, i, ring_i, scratch.seen)
     n_j, boundary_j = _neighbours(state, j, ring_j, scratch.seen)
-    # Hoppe 1993 §4.1: an edge joining two boundary vertices must be a boundary edge.
+    illegal = (zero, n_i, n_j, zero, zero, zero, boundary_i, boundary_j)
+    # An edge joining two boundary vertices must be a boundary edge.
     if boundary_i and boundary_j and n_edge == 2:
-        return ILLEGAL_TOPOLOGY
+        return illegal
     # Link condition: the common neighbours of i and j are the corners opposite the edge.
     common = 0
     for m in range(n_i):
         if _has(ring_j, n_j, ring_i[m]):
             common += 1
     if common != n_edge:
-        return ILLEGAL_TOPOLOGY
+        return illegal
     # The same with the boundary closed by a virtual vertex joined to it: a boundary face
     # whose other two edges are boundary edges too (an ear) may not collapse.
     if n_edge == 1:
         k = _opposite(F, edge[0], i, j)
         probe = scratch.probe
         if _edge_faces(state, i, k, probe) == 1 and _edge_faces(state, j, k, probe) == 1:
-            return ILLEGAL_TOPOLOGY
+            return illegal
     # The mesh keeps more than a tetrahedron (or a triangle, at a boundary).
     if state.sizes[2] <= (3 if boundary_i or boundary_j else 4):
-        return ILLEGAL_TOPOLOGY
+        return illegal
     if deg[i] + deg[j] - 2 * n_edge > width:
-        return ILLEGAL_TOPOLOGY
-    # Region: faces around i or j. Candidates: the same faces with i, j -> H, minus the
-    # faces on the edge.
+        return illegal
     region = scratch.region
-    # Counters start as np.int64: from a literal 0, Numba would first compile every callee
-    # for Literal[int](0), then again for int64.
-    n_region = np.int64(0)
+    n_region = zero
     for k in range(deg[i]):
         region[n_region] = vf[i, k]
         n_region += 1
@@ -596,7 +598,7 @@ def try_collapse(state, scratch, i, j, kappa, c_rep, min_cos, force, result):
             region[n_region] = vf[j, k]
             n_region += 1
     new_faces, global_face = scratch.new_faces, scratch.global_face
-    n_new = np.int64(0)
+    n_new = zero
     for r in range(n_region):
         f = region[r]
         if _contains(F, f, i) and _contains(F, f, j):
@@ -607,7 +609,7 @@ def try_collapse(state, scratch, i, j, kappa, c_rep, min_cos, force, result):
         global_face[n_new] = f
         n_new += 1
     ring = scratch.ring
-    n_ring = np.int64(0)
+    n_ring = zero
     for m in range(n_i):
         if ring_i[m] != j:
             ring[n_ring] = ring_i[m]
@@ -616,6 +618,44 @@ def try_collapse(state, scratch, i, j, kappa, c_rep, min_cos, force, result):
         if ring_j[m] != i and not _has(ring, n_ring, ring_j[m]):
             ring[n_ring] = ring_j[m]
             n_ring += 1
+    return n_edge, n_i, n_j, n_region, n_new, n_ring, boundary_i, boundary_j
+
+
+@jit
+def _apply_collapse(state, i, j, h, edge, n_edge):
+    # Vertex i survives at h; j and the faces on the edge, `edge[:n_edge]`, go.
+    V, F, vf, deg = state.V, state.F, state.vf, state.deg
+    V[i] = h
+    for e in range(n_edge):
+        f = edge[e]
+        state.alive_f[f] = False
+        for c in range(3):
+            _remove_face(vf, deg, F[f, c], f)
+    for k in range(deg[j]):
+        f = vf[j, k]
+        for c in range(3):
+            if F[f, c] == j:
+                F[f, c] = i
+        _add_face(vf, deg, i, f)
+    deg[j] = 0
+    state.alive_v[j] = False
+    state.sizes[2] -= 1
+
+
+@jit
+def try_collapse(state, scratch, i, j, kappa, c_rep, min_cos, force, result):
+    """Collapse edge (i, j) into one vertex if that is legal and lowers the energy.
+
+    `result` (2,) float64 gets the energy change and the number of the surviving vertex.
+    Returns an outcome code. With `force`, any legal move is made.
+    """
+    V = state.V
+    n_edge, n_i, n_j, n_region, n_new, n_ring, boundary_i, boundary_j = _collapse_region(
+        state, scratch, i, j
+    )
+    if n_edge == 0:
+        return ILLEGAL_TOPOLOGY
+    ring_i, ring_j, region = scratch.ring_i, scratch.ring_j, scratch.region
     pts, old = _gather_points(state, region, n_region, scratch.pts)
     for m in range(n_i):
         u = ring_i[m]
@@ -640,36 +680,89 @@ def try_collapse(state, scratch, i, j, kappa, c_rep, min_cos, force, result):
         h[:] = 0.5 * (V[i] + V[j])
     n = pts.shape[0]
     face, bary, d2 = scratch.face[:n], scratch.bary[:n], scratch.d2[:n]
-    _guesses(state, pts, global_face, n_new, face)
-    _adjacent(new_faces, n_new, scratch.near)
+    _guesses(state, pts, scratch.global_face, n_new, face)
+    _adjacent(scratch.new_faces, n_new, scratch.near)
     new = _fit_vertex(
-        state, scratch, pts, new_faces, n_new, scratch.near, ring, n_ring, kappa, old + c_rep,
-        face, bary, d2,
+        state, scratch, pts, scratch.new_faces, n_new, scratch.near, scratch.ring, n_ring,
+        kappa, old + c_rep, face, bary, d2,
     )  # fmt: skip
     delta = new - old - c_rep
     result[0] = delta
     result[1] = i
     if not force and delta >= 0.0:
         return ENERGY_INCREASE
-    if not _fold_ok(state, scratch, region, n_region, new_faces, n_new, h, min_cos):
+    if not _fold_ok(state, scratch, region, n_region, scratch.new_faces, n_new, h, min_cos):
         return BAD_DIHEDRAL
-    # Apply: i survives at h, j and the faces on the edge go.
-    V[i] = h
-    for e in range(n_edge):
-        f = edge[e]
-        alive_f[f] = False
-        for c in range(3):
-            _remove_face(vf, deg, F[f, c], f)
-    for k in range(deg[j]):
-        f = vf[j, k]
-        for c in range(3):
-            if F[f, c] == j:
-                F[f, c] = i
-        _add_face(vf, deg, i, f)
-    deg[j] = 0
-    alive_v[j] = False
-    state.sizes[2] -= 1
-    _reassign(state, pts, global_face, face, bary, d2)
+    _apply_collapse(state, i, j, h, scratch.edge, n_edge)
+    _reassign(state, pts, scratch.global_face, face, bary, d2)
+    return ACCEPTED
+
+
+@jit
+def try_collapse_within(state, scratch, normals, i, j, tolerance2, min_cos):
+    """Collapse edge (i, j) onto one of its ends if that is legal and every point on the
+    faces it changes stays within sqrt(`tolerance2`) of the new faces, on a face whose
+    normal is within arccos(`min_cos`) of the point's own (`normals` (N, 3), unit).
+
+    The vertex that stays keeps its place (a half-edge collapse), so every vertex stays a
+    vertex of the starting mesh: i if that keeps the points within, else j; a boundary
+    vertex always stays, and no boundary edge collapses, so that the boundary keeps its
+    place. Returns an outcome code: ENERGY_INCREASE when a point would lie too far.
+    """
+    V = state.V
+    n_edge, _, _, n_region, n_new, _, boundary_i, boundary_j = _collapse_region(
+        state, scratch, i, j
+    )
+    if n_edge == 0 or (boundary_i and boundary_j):
+        return ILLEGAL_TOPOLOGY  # the boundary keeps every vertex
+    region = scratch.region
+    pts, _ = _gather_points(state, region, n_region, scratch.pts)
+    n = pts.shape[0]
+    face, bary, d2 = scratch.face[:n], scratch.bary[:n], scratch.d2[:n]
+    _adjacent(scratch.new_faces, n_new, scratch.near)
+    h = scratch.position
+    within = False
+    for end in (i, j):
+        if (boundary_i and end == j) or (boundary_j and end == i):
+            continue
+        h[:] = V[end]
+        _guesses(state, pts, scratch.global_face, n_new, face)
+        within = np.isfinite(
+            _project_local(
+                state,
+                scratch,
+                pts,
+                scratch.new_faces,
+                n_new,
+                scratch.near,
+                h,
+                face,
+                bary,
+                d2,
+                tolerance2,
+            )  # fmt: skip
+        )
+        if within:
+            break
+    if not within:
+        return ENERGY_INCREASE
+    if not _fold_ok(state, scratch, region, n_region, scratch.new_faces, n_new, h, min_cos):
+        return BAD_DIHEDRAL
+    new_faces, face_normals = scratch.new_faces, scratch.sphere  # the spheres are spent
+    for t in range(n_new):
+        nx, ny, nz, _ = _normal(V, h, new_faces[t, 0], new_faces[t, 1], new_faces[t, 2])
+        face_normals[t, 0], face_normals[t, 1], face_normals[t, 2] = nx, ny, nz
+    for q in range(n):
+        t, p = face[q], pts[q]
+        cos = (
+            face_normals[t, 0] * normals[p, 0]
+            + face_normals[t, 1] * normals[p, 1]
+            + face_normals[t, 2] * normals[p, 2]
+        )
+        if cos < min_cos:
+            return BAD_DIHEDRAL
+    _apply_collapse(state, i, j, h, scratch.edge, n_edge)
+    _reassign(state, pts, scratch.global_face, face, bary, d2)
     return ACCEPTED
 
 
@@ -928,3 +1021,52 @@ def run_pass(
                 owner[s] = label
             tail = _push_star(state, s, queue, tail, capacity, head)
     return total, n_deferred
+
+
+@jit
+def run_within_pass(
+    state, scratch, normals, owner, label, edges, tolerance2, min_cos, tally, deferred
+):  # fmt: skip
+    """Try `try_collapse_within` on every edge of `edges` (E, 2), in that order; after a
+    collapse, the edges around its vertex join the end of the queue. `tally` (4,) int64
+    counts the outcomes.
+
+    With `label` >= 0, an edge is tried only if every face around its ends has all its
+    corners labelled `label` in `owner` (Vc,) int64 (see `_owned`); the others go to
+    `deferred` (Q, 2) int64, as many as fit, so that passes over different labels may run
+    at once. With `label` -1 every edge is tried.
+
+    Returns the number of collapses and of deferred edges.
+    """
+    F, vf, deg, alive_v = state.F, state.vf, state.deg, state.alive_v
+    capacity = max(4 * edges.shape[0], 1024)
+    queue = np.zeros((capacity, 2), dtype=np.int64)
+    n = min(edges.shape[0], capacity)
+    queue[:n] = edges[:n]
+    head, tail = 0, n
+    done = 0
+    n_deferred = 0
+    while head < tail:
+        slot = head % capacity
+        i, j = queue[slot, 0], queue[slot, 1]
+        head += 1
+        if not alive_v[i] or not alive_v[j] or _edge_faces(state, i, j, scratch.probe) == 0:
+            continue  # the edge went with an earlier collapse
+        if label >= 0 and not _owned(state, owner, label, i, j):
+            if n_deferred < deferred.shape[0]:
+                deferred[n_deferred, 0], deferred[n_deferred, 1] = i, j
+                n_deferred += 1
+            continue
+        outcome = try_collapse_within(state, scratch, normals, i, j, tolerance2, min_cos)
+        tally[outcome] += 1
+        if outcome != ACCEPTED:
+            continue
+        done += 1
+        for k in range(deg[i]):
+            f = vf[i, k]
+            for c in range(3):
+                if tail - head < capacity and F[f, c] == i:
+                    slot = tail % capacity
+                    queue[slot, 0], queue[slot, 1] = i, F[f, (c + 1) % 3]
+                    tail += 1
+    return done, n_deferred

@@ -39,6 +39,12 @@ ROUND_CUTS = ((0.25, 0.75), (0.5,))
 MIN_SLAB_FACES = 256
 
 
+def _by_length(state, edges: np.ndarray) -> np.ndarray:
+    """`edges` (E, 2) int64 of a state, shortest first."""
+    length = np.linalg.norm(state.V[edges[:, 0]] - state.V[edges[:, 1]], axis=1)
+    return np.ascontiguousarray(edges[np.argsort(length, kind="stable")], dtype=np.int64)
+
+
 class MoveOutcome(enum.IntEnum):
     """What became of one attempted move."""
 
@@ -198,6 +204,57 @@ class MeshState:
             state, -1, edges, int(seeds[-1]), scratches[0], np.zeros(1, np.int64), max_attempts
         )
         return delta + last_delta, tally + last_tally
+
+    def collapse_within(self, tolerance: float, normals: np.ndarray) -> int:
+        """Collapse edges, shortest first, while every point stays within `tolerance` of
+        the face it lies on, and that face within ``max_fold_degrees`` of the point's unit
+        normal (`normals` (N, 3); `_kernels.optimize.try_collapse_within`); the edges
+        around each collapse join the end of the queue. Returns the number of collapses.
+
+        The collapses run in the rounds of :meth:`run_pass`, the slabs of each label on a
+        thread of their own.
+        """
+        state = self._state
+        normals = np.ascontiguousarray(normals, dtype=np.float64)
+        edges = _by_length(state, np.unique(_kernels.edges_of(state), axis=0))
+        squared = float(tolerance) ** 2
+        lanes = min(LABELS, numba.get_num_threads())
+        scratches = self._scratches(lanes)
+
+        def collapse(job_state, label, job_edges, scratch, owner):
+            tally = np.zeros(4, dtype=np.int64)
+            deferred = np.zeros((max(4 * job_edges.shape[0], 1024), 2), dtype=np.int64)
+            done, n_deferred = _kernels.run_within_pass(
+                job_state, scratch, normals, owner, label, job_edges, squared, self.min_cos,
+                tally, deferred,
+            )  # fmt: skip
+            return done, deferred[:n_deferred]
+
+        total = 0
+        for cuts in ROUND_CUTS:
+            owner = self._slabs(cuts)
+            if owner is None or edges.shape[0] == 0:
+                break
+            label = owner[edges]
+            same = label[:, 0] == label[:, 1]
+            live = np.count_nonzero(state.alive_v)
+            # Each job counts the live vertices in a copy of its own (`sizes`).
+            jobs = [
+                (state._replace(sizes=state.sizes.copy()), k,
+                 np.ascontiguousarray(edges[same & (label[:, 0] == k)]))
+                for k in range(LABELS)
+            ]  # fmt: skip
+            waiting = [edges[~same]]
+            arguments = [(*job, scratches[k % lanes], owner) for k, job in enumerate(jobs)]
+            with ThreadPoolExecutor(lanes) as pool:  # one lane: one job after the other
+                results = list(pool.map(collapse, *zip(*arguments, strict=True)))
+            for done, deferred in results:
+                total += done
+                waiting.append(deferred)
+            state.sizes[2] = live - sum(done for done, _ in results)
+            edges = _by_length(state, np.concatenate(waiting))
+        done, _ = collapse(state, -1, edges, scratches[0], np.zeros(1, np.int64))
+        return total + done
 
     def _run_jobs(self, jobs, owner, scratches, max_attempts) -> list:
         """`_pass` for each (state, label, edges, seed) job, one thread per scratch."""

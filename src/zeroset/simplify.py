@@ -1,0 +1,206 @@
+"""Few triangles within a stated distance of the dense mesh.
+
+Phase 1's dense mesh (after stage "refine": its vertices on the smooth local surface, its
+chords within the refinement's sag) samples the surface finely. `simplify_mesh` collapses
+its edges while every sample (its vertices and face centroids) stays within the tolerance
+of the new triangles, on a triangle that faces within ``MAX_FOLD_DEGREES_SIMPLIFY`` of the
+sample's own normal. Where the surface bends little an edge may be long, so triangles grow
+long along the direction of least curvature (a pipe's axis) and stay short across it: the
+error decides their shape, not a target edge length.
+
+The collapse is phase 2's (`zeroset._kernels.optimize`: Hoppe et al. 1993, §4, with its
+legality and fold tests), with the tolerance as the constraint in place of the energy, and
+onto one of the edge's ends (a half-edge collapse): every vertex stays a vertex of the dense
+mesh, on the surface, so no vertex strays between the samples. The chords then lie inside a
+convex surface; `unbias` moves every vertex along its normal by the mean sag of its faces,
+so that the signed error averages out. Last, every triangle is checked against the dense
+mesh over its whole area (`two_sided_errors`), and the longest edge of one that strays is
+split. Boundary vertices stay where they are and boundary edges are kept: the boundary
+loops are the dense mesh's own.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .errors import InputError
+from .evaluate import closest_on_arrays
+from .optimization import MeshState, project
+from .refine import split_edges
+from .surface import Surface
+from .thresholds import (
+    CHECK_ROUNDS,
+    MAX_FOLD_DEGREES_SIMPLIFY,
+    SAMPLE_MARGIN,
+    UNCERTAINTIES,
+)
+from .topology import boundary_loops, face_area_vectors, undirected_edges
+from .types import Mesh
+
+__all__ = ["choose_tolerance", "simplify_mesh", "two_sided_errors", "unbias"]
+
+
+def choose_tolerance(surface: Surface, noise: float, given: float | None) -> tuple[float, str]:
+    """The tolerance of `simplify_mesh` (data units) and one line on how it was chosen.
+
+    `given` (data units) when not None; else ``UNCERTAINTIES`` times the surface's own
+    uncertainty for points of noise level `noise` (`zeroset.surface.Surface.uncertainty`):
+    a mesh that close to the fitted surface differs from it by less than the fit itself
+    is known, at two standard errors. A surface that states no uncertainty keeps the
+    dense mesh (0).
+    """
+    if given is not None:
+        return float(given), f"tolerance = {float(given):.4g}: given"
+    uncertainty = surface.uncertainty(noise)
+    if uncertainty is None:
+        return 0.0, "tolerance = 0: the surface states no uncertainty; the dense mesh is kept"
+    tolerance = UNCERTAINTIES * uncertainty
+    return tolerance, (
+        f"tolerance = {tolerance:.4g}: {UNCERTAINTIES:g} x the surface's uncertainty "
+        f"{uncertainty:.4g} (noise {noise:.4g} x sqrt(6 / points per jet))"
+    )
+
+
+def simplify_mesh(mesh: Mesh, tolerance: float) -> tuple[Mesh, dict]:
+    """Few triangles, each within `tolerance` of `mesh` over its whole area.
+
+    Parameters
+    ----------
+    mesh : Mesh
+        Dense, edge-manifold and consistently oriented.
+    tolerance : float
+        Largest distance allowed between the two meshes, both ways, in data units; 0
+        returns `mesh` as it is.
+
+    Returns
+    -------
+    mesh : Mesh
+        The same boundary loops, edge-manifold and oriented like `mesh`; `mesh` itself
+        where no fewer triangles stay within the tolerance.
+    counts : dict
+        ``simplify_collapses``; ``simplify_splits``, edges split where a triangle strayed;
+        ``simplify_strays``, triangles still farther than the tolerance after the last
+        check round (see `two_sided_errors`).
+    """
+    tolerance = float(tolerance)
+    if not np.isfinite(tolerance) or tolerance < 0.0:
+        raise InputError(f"tolerance must be a finite distance >= 0; got {tolerance!r}")
+    counts = {"simplify_collapses": 0, "simplify_splits": 0, "simplify_strays": 0}
+    if tolerance == 0.0 or mesh.n_faces == 0:
+        return mesh, counts
+    samples = np.concatenate([mesh.vertices, mesh.vertices[mesh.faces].mean(axis=1)])
+    area_vectors = face_area_vectors(mesh.vertices, mesh.faces)
+    normals = np.concatenate(
+        [_vertex_normals(mesh.faces, mesh.n_vertices, area_vectors), area_vectors]
+    )
+    normals /= np.maximum(np.linalg.norm(normals, axis=1), 1e-300)[:, None]
+    state = MeshState(
+        mesh.vertices, mesh.faces, samples, project(samples, mesh.vertices, mesh.faces),
+        kappa=0.0, c_rep=0.0, max_fold_degrees=MAX_FOLD_DEGREES_SIMPLIFY, spare=0.0,
+    )  # fmt: skip
+    counts["simplify_collapses"] = state.collapse_within(SAMPLE_MARGIN * tolerance, normals)
+    simple = unbias(state.to_mesh(), samples)
+    # Every measured point within the margin, so that what lies between them stays within
+    # the tolerance; past the last round, what strays past the tolerance itself is counted.
+    for _ in range(CHECK_ROUNDS):
+        strays = two_sided_errors(simple, mesh) > SAMPLE_MARGIN * tolerance
+        if not strays.any():
+            break
+        simple, split = _split_strays(simple, mesh, strays)
+        counts["simplify_splits"] += split
+    errors = two_sided_errors(simple, mesh)
+    counts["simplify_strays"] = int(np.count_nonzero(errors > tolerance))
+    if simple.n_faces >= mesh.n_faces:  # a tolerance too fine for the surface's bends
+        return mesh, dict.fromkeys(counts, 0)
+    return simple, counts
+
+
+def two_sided_errors(simple: Mesh, dense: Mesh) -> np.ndarray:
+    """(F,) for each triangle of `simple`, the larger of two distances, in data units: the
+    farthest of its points from `dense`, and the farthest of the points of `dense` (its
+    vertices, edge midpoints and face centroids) whose closest point on `simple` lies on
+    it.
+
+    A triangle's points are a barycentric grid whose spacing along its longest edge is no
+    more than the dense mesh's median edge: between them, the dense mesh is flat or bends
+    at a dense vertex that the samples see.
+    """
+    corners = simple.vertices[simple.faces]
+    longest = np.linalg.norm(corners[:, [1, 2, 0]] - corners, axis=2).max(axis=1)
+    spacing = np.median(np.linalg.norm(dense.vertices[dense.faces[:, 1]]
+                                       - dense.vertices[dense.faces[:, 0]], axis=1))  # fmt: skip
+    steps = np.maximum(1, np.ceil(2.0 * longest / max(spacing, 1e-300))).astype(np.int64)
+    error = np.zeros(simple.n_faces)
+    for step in np.unique(steps):
+        rows = np.flatnonzero(steps == step)
+        grid = (
+            np.array(
+                [(i, j) for i in range(step + 1) for j in range(step + 1 - i)], dtype=np.float64
+            )
+            / step
+        )
+        bary = np.column_stack([1.0 - grid.sum(axis=1), grid])
+        points = np.einsum("gc,fcx->fgx", bary, corners[rows]).reshape(-1, 3)
+        _, _, away = closest_on_arrays(points, dense.vertices, dense.faces)
+        error[rows] = away.reshape(rows.size, -1).max(axis=1)
+    edges = undirected_edges(dense.faces)[0]
+    points = np.concatenate(
+        [
+            dense.vertices,
+            dense.vertices[edges].mean(axis=1),
+            dense.vertices[dense.faces].mean(axis=1),
+        ]
+    )
+    _, face, back = closest_on_arrays(points, simple.vertices, simple.faces)
+    np.maximum.at(error, face, back)
+    return error
+
+
+def unbias(mesh: Mesh, samples: np.ndarray) -> Mesh:
+    """The mesh with every vertex moved along its normal so that the `samples` (N, 3) of
+    the surface it approximates lie as far outside its faces as inside, on average.
+
+    Each face's offset is the mean signed distance of the samples whose closest point lies
+    on it (along its normal); each vertex moves by the area-weighted mean offset of its
+    faces. Chords of a convex surface lie inside it; this moves them out by their mean sag.
+    Boundary vertices stay where they are.
+    """
+    vertices, faces = mesh.vertices, mesh.faces
+    closest, face, _ = closest_on_arrays(samples, vertices, faces)
+    area_vectors = face_area_vectors(vertices, faces)
+    area = np.linalg.norm(area_vectors, axis=1)
+    normals = area_vectors / np.maximum(area, 1e-300)[:, None]
+    signed = np.einsum("ij,ij->i", samples - closest, normals[face])
+    held = np.bincount(face, minlength=faces.shape[0])
+    offset = np.bincount(face, signed, minlength=faces.shape[0]) / np.maximum(held, 1)
+    weight = np.bincount(faces.reshape(-1), np.repeat(area, 3), minlength=mesh.n_vertices)
+    shift = np.bincount(faces.reshape(-1), np.repeat(area * offset, 3), mesh.n_vertices)
+    vertex_normals = _vertex_normals(faces, mesh.n_vertices, area_vectors)
+    vertex_normals /= np.maximum(np.linalg.norm(vertex_normals, axis=1), 1e-300)[:, None]
+    shift /= np.maximum(weight, 1e-300)
+    shift[np.concatenate([np.zeros(0, dtype=np.int64), *boundary_loops(faces)])] = 0.0
+    return Mesh(vertices=vertices + shift[:, None] * vertex_normals, faces=faces)
+
+
+def _vertex_normals(faces: np.ndarray, n_vertices: int, area_vectors: np.ndarray) -> np.ndarray:
+    """(V, 3) the sum of the area vectors (F, 3) of each vertex's faces (not normalised)."""
+    normals = np.zeros((n_vertices, 3))
+    for corner in range(3):
+        np.add.at(normals, faces[:, corner], area_vectors)
+    return normals
+
+
+def _split_strays(simple: Mesh, dense: Mesh, strays: np.ndarray) -> tuple[Mesh, int]:
+    """Split the longest edge of every straying triangle of `simple`; each new vertex
+    goes to its closest point on `dense`."""
+    edges, corner_edge, _ = undirected_edges(simple.faces)
+    corners = simple.vertices[simple.faces]
+    length = np.linalg.norm(corners[:, [1, 2, 0]] - corners, axis=2)
+    longest = corner_edge[np.arange(simple.n_faces), np.argmax(length, axis=1)]
+    marked = np.zeros(edges.shape[0], dtype=bool)
+    marked[longest[strays]] = True
+    split = split_edges(simple, marked)
+    vertices = split.vertices.copy()
+    new = np.arange(simple.n_vertices, split.n_vertices)
+    vertices[new] = closest_on_arrays(vertices[new], dense.vertices, dense.faces)[0]
+    return Mesh(vertices=vertices, faces=split.faces), int(np.count_nonzero(marked))
