@@ -53,6 +53,9 @@ and keeps the rest (this introduction included):
   points (`benchmarks/bench_phase2.py`).
 - [Method of Cubes](#method-of-cubes-against-marching-cubes): the two contourings of phase 1
   side by side, and phase 2 started from each (`benchmarks/bench_cubes.py`).
+- [Few triangles within a tolerance](#few-triangles-within-a-tolerance-simplify): the default
+  simplified mesh against the dense one and Open3D's quadric decimation, and Chamfer-L1
+  against faces (`benchmarks/bench_simplify.py`).
 - [Pictures and HTML reports](#pictures-and-html-reports-of-large-meshes): time to draw a
   picture and write a report of up to 1M triangles, the report's size and its load time in a
   browser (`benchmarks/bench_report.py`).

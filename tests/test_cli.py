@@ -44,6 +44,26 @@ def test_reconstruct_writes_mesh_report_and_preview(sphere_file, tmp_path, capsy
     assert "rho_delta" in printed and "boundary loop" in printed and "seconds" in printed
 
 
+def test_tolerance_chooses_between_the_dense_and_the_simplified_mesh(sphere_file, tmp_path, capsys):
+    dense, simple = tmp_path / "dense.ply", tmp_path / "simple.ply"
+    assert main(["reconstruct", str(sphere_file), "-o", str(dense), "--tolerance", "0"]) == 0
+    assert "\nsimplify " not in capsys.readouterr().out
+    assert main(["reconstruct", str(sphere_file), "-o", str(simple), "--report",
+                 str(tmp_path / "r.json")]) == 0  # fmt: skip
+    printed = capsys.readouterr().out
+    report = json.loads((tmp_path / "r.json").read_text())
+    dense_mesh, simple_mesh = io.read_mesh(dense), io.read_mesh(simple)
+    assert simple_mesh.n_faces < dense_mesh.n_faces == report["stats"]["dense_faces"]
+    assert "\nsimplify " in printed and "uncertainty" in report["stats"]["tolerance_note"]
+    assert topology.euler_characteristic(simple_mesh) == 2
+    bad = tmp_path / "bad.ply"
+    assert main(["reconstruct", str(sphere_file), "-o", str(bad), "--tolerance", "-1"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("zeroset: error: ") and "tolerance must be" in err
+    assert err.count("\n") == 1
+    assert not bad.exists()
+
+
 def test_options_reach_the_pipeline(sphere_file, tmp_path):
     out = tmp_path / "mesh.ply"
     code = main(
