@@ -9,7 +9,7 @@ from zeroset import reconstruct, topology
 from zeroset.errors import InputError
 from zeroset.evaluate import closest_points_on_mesh, sample_surface
 from zeroset.jets import fit_jets
-from zeroset.simplify import choose_tolerance, simplify_mesh
+from zeroset.simplify import choose_tolerance, simplify_mesh, triangle_grid
 from zeroset.synthetic import sample_cylinder
 from zeroset.types import Mesh
 
@@ -176,3 +176,23 @@ def test_phase_2_takes_no_tolerance():
         reconstruct(points, optimize=True, tolerance=1e-3)
     with pytest.raises(InputError, match="tolerance"):
         reconstruct(points, tolerance=-1.0)
+
+
+def test_the_check_grid_covers_a_long_thin_triangle_with_few_points():
+    mesh = Mesh(
+        vertices=np.array([[0.0, 0.0, 0.0], [0.3, 0.0, 0.0], [0.1, 0.02, 0.0]]),
+        faces=np.array([[0, 1, 2]]),
+    )
+    points, face = triangle_grid(mesh, 0.005)
+    assert (face == 0).all() and points.shape[0] < 300  # a barycentric grid: 1,891
+    u = np.random.default_rng(0).random((20_000, 2))
+    u = u[u.sum(axis=1) <= 1.0]
+    inside = mesh.vertices[0] + u @ (mesh.vertices[1:] - mesh.vertices[0])
+    gap = np.min(np.linalg.norm(inside[:, None] - points[None], axis=2), axis=1)
+    assert gap.max() <= 0.005
+    corners = mesh.vertices
+    assert np.min(np.linalg.norm(points[:, None] - corners[None], axis=2), axis=0).max() < 1e-12
+    # Every point lies on the triangle: barycentric coordinates in [0, 1].
+    solved = np.linalg.lstsq((corners[1:] - corners[0])[:, :2].T, (points - corners[0])[:, :2].T)
+    s, t = solved[0]
+    assert (s >= -1e-12).all() and (t >= -1e-12).all() and (s + t <= 1 + 1e-12).all()

@@ -37,7 +37,7 @@ from .thresholds import (
 from .topology import boundary_loops, face_area_vectors, undirected_edges
 from .types import Mesh
 
-__all__ = ["choose_tolerance", "simplify_mesh", "two_sided_errors", "unbias"]
+__all__ = ["choose_tolerance", "simplify_mesh", "triangle_grid", "two_sided_errors", "unbias"]
 
 
 def choose_tolerance(surface: Surface, noise: float, given: float | None) -> tuple[float, str]:
@@ -102,13 +102,14 @@ def simplify_mesh(mesh: Mesh, tolerance: float) -> tuple[Mesh, dict]:
     simple = unbias(state.to_mesh(), samples)
     # Every measured point within the margin, so that what lies between them stays within
     # the tolerance; past the last round, what strays past the tolerance itself is counted.
+    errors = two_sided_errors(simple, mesh)
     for _ in range(CHECK_ROUNDS):
-        strays = two_sided_errors(simple, mesh) > SAMPLE_MARGIN * tolerance
+        strays = errors > SAMPLE_MARGIN * tolerance
         if not strays.any():
             break
         simple, split = _split_strays(simple, mesh, strays)
         counts["simplify_splits"] += split
-    errors = two_sided_errors(simple, mesh)
+        errors = two_sided_errors(simple, mesh)
     counts["simplify_strays"] = int(np.count_nonzero(errors > tolerance))
     if simple.n_faces >= mesh.n_faces:  # a tolerance too fine for the surface's bends
         return mesh, dict.fromkeys(counts, 0)
@@ -121,39 +122,63 @@ def two_sided_errors(simple: Mesh, dense: Mesh) -> np.ndarray:
     vertices, edge midpoints and face centroids) whose closest point on `simple` lies on
     it.
 
-    A triangle's points are a barycentric grid whose spacing along its longest edge is no
-    more than the dense mesh's median edge: between them, the dense mesh is flat or bends
-    at a dense vertex that the samples see.
+    A triangle's points are a grid along its two sides from a corner of its shortest side,
+    no coarser than the dense mesh's median edge either way: as many as its area needs,
+    also for a long thin triangle.
     """
-    corners = simple.vertices[simple.faces]
-    longest = np.linalg.norm(corners[:, [1, 2, 0]] - corners, axis=2).max(axis=1)
     spacing = np.median(np.linalg.norm(dense.vertices[dense.faces[:, 1]]
                                        - dense.vertices[dense.faces[:, 0]], axis=1))  # fmt: skip
-    steps = np.maximum(1, np.ceil(2.0 * longest / max(spacing, 1e-300))).astype(np.int64)
+    points, face = triangle_grid(simple, max(float(spacing), 1e-300))
+    _, _, away = closest_on_arrays(points, dense.vertices, dense.faces)
     error = np.zeros(simple.n_faces)
-    for step in np.unique(steps):
-        rows = np.flatnonzero(steps == step)
-        grid = (
-            np.array(
-                [(i, j) for i in range(step + 1) for j in range(step + 1 - i)], dtype=np.float64
-            )
-            / step
-        )
-        bary = np.column_stack([1.0 - grid.sum(axis=1), grid])
-        points = np.einsum("gc,fcx->fgx", bary, corners[rows]).reshape(-1, 3)
-        _, _, away = closest_on_arrays(points, dense.vertices, dense.faces)
-        error[rows] = away.reshape(rows.size, -1).max(axis=1)
+    np.maximum.at(error, face, away)
     edges = undirected_edges(dense.faces)[0]
-    points = np.concatenate(
-        [
-            dense.vertices,
-            dense.vertices[edges].mean(axis=1),
-            dense.vertices[dense.faces].mean(axis=1),
-        ]
+    corners = dense.vertices[dense.faces]
+    samples = np.concatenate(
+        [dense.vertices, dense.vertices[edges].mean(axis=1), corners.mean(axis=1)]
     )
-    _, face, back = closest_on_arrays(points, simple.vertices, simple.faces)
+    _, face, back = closest_on_arrays(samples, simple.vertices, simple.faces)
     np.maximum.at(error, face, back)
     return error
+
+
+def triangle_grid(mesh: Mesh, spacing: float) -> tuple[np.ndarray, np.ndarray]:
+    """Points (P, 3) on every triangle of `mesh`, and the face (P,) of each: the points of
+    each side at most `spacing` apart (corners included), and inside a grid of at most
+    `spacing` along the longest side and across it, so that a long thin triangle takes
+    about its area over the spacing squared."""
+    corners = mesh.vertices[mesh.faces]
+    sides = corners[:, [1, 2, 0]] - corners  # side k runs from corner k to corner k + 1
+    length = np.linalg.norm(sides, axis=2)
+    # Along each side.
+    steps = np.maximum(1, np.ceil(length / spacing)).astype(np.int64).ravel()
+    side = np.repeat(np.arange(steps.size), steps)
+    fraction = (np.arange(side.size) - np.repeat(np.cumsum(steps) - steps, steps)) / steps[side]
+    on_sides = corners.reshape(-1, 3)[side] + fraction[:, None] * sides.reshape(-1, 3)[side]
+    # Inside: (u, v) along the longest side ab and across it, towards the corner c.
+    rows = np.arange(mesh.n_faces)
+    k = np.argmax(length, axis=1)
+    a, c = corners[rows, k], corners[rows, (k + 2) % 3]
+    base = length[rows, k]
+    along = sides[rows, k] / np.maximum(base, 1e-300)[:, None]
+    c_u = np.einsum("ij,ij->i", c - a, along)
+    across = (c - a) - c_u[:, None] * along
+    height = np.linalg.norm(across, axis=1)
+    across /= np.maximum(height, 1e-300)[:, None]
+    n_u = np.maximum(1, np.ceil(base / spacing)).astype(np.int64)
+    n_v = np.maximum(1, np.ceil(height / spacing)).astype(np.int64)
+    counts = (n_u + 1) * (n_v + 1)
+    face = np.repeat(rows, counts)
+    index = np.arange(face.size) - np.repeat(np.cumsum(counts) - counts, counts)
+    u = (index // (n_v + 1)[face]) * (base / n_u)[face]
+    v = (index % (n_v + 1)[face]) * (height / n_v)[face]
+    slack = 1e-12 * base[face] * height[face]
+    keep = (v * c_u[face] <= height[face] * u + slack) & (
+        v * (base - c_u)[face] <= height[face] * (base[face] - u) + slack
+    )
+    face, u, v = face[keep], u[keep, None], v[keep, None]
+    inside = a[face] + u * along[face] + v * across[face]
+    return np.concatenate([on_sides, inside]), np.concatenate([side // 3, face])
 
 
 def unbias(mesh: Mesh, samples: np.ndarray) -> Mesh:

@@ -39,6 +39,15 @@ ROUND_CUTS = ((0.25, 0.75), (0.5,))
 MIN_SLAB_FACES = 256
 
 
+def _by_slab(owner: np.ndarray, edges: np.ndarray) -> tuple[list[np.ndarray], np.ndarray]:
+    """The `edges` (E, 2) whose ends share a label of `owner`, one array per label, in
+    their order, and those whose ends do not."""
+    label = owner[edges]
+    same = label[:, 0] == label[:, 1]
+    inside = [np.ascontiguousarray(edges[same & (label[:, 0] == k)]) for k in range(LABELS)]
+    return inside, edges[~same]
+
+
 def _by_length(state, edges: np.ndarray) -> np.ndarray:
     """`edges` (E, 2) int64 of a state, shortest first."""
     length = np.linalg.norm(state.V[edges[:, 0]] - state.V[edges[:, 1]], axis=1)
@@ -175,21 +184,15 @@ class MeshState:
             owner = self._slabs(cuts)
             if owner is None or edges.shape[0] == 0:
                 break
-            label = owner[edges]
-            same = label[:, 0] == label[:, 1]
+            inside, crossing = _by_slab(owner, edges)
             live = np.count_nonzero(state.alive_v)
             jobs = []
             for k in range(LABELS):
                 sizes[k][2] = live
                 jobs.append(
-                    (
-                        state._replace(sizes=sizes[k]),
-                        k,
-                        np.ascontiguousarray(edges[same & (label[:, 0] == k)]),
-                        int(seeds[round_ * LABELS + k]),
-                    )
+                    (state._replace(sizes=sizes[k]), k, inside[k], int(seeds[round_ * LABELS + k]))
                 )
-            waiting = [edges[~same]]
+            waiting = [crossing]
             for job_delta, job_tally, job_deferred in self._run_jobs(
                 jobs, owner, scratches, max_attempts
             ):
@@ -235,16 +238,11 @@ class MeshState:
             owner = self._slabs(cuts)
             if owner is None or edges.shape[0] == 0:
                 break
-            label = owner[edges]
-            same = label[:, 0] == label[:, 1]
+            inside, crossing = _by_slab(owner, edges)
             live = np.count_nonzero(state.alive_v)
             # Each job counts the live vertices in a copy of its own (`sizes`).
-            jobs = [
-                (state._replace(sizes=state.sizes.copy()), k,
-                 np.ascontiguousarray(edges[same & (label[:, 0] == k)]))
-                for k in range(LABELS)
-            ]  # fmt: skip
-            waiting = [edges[~same]]
+            jobs = [(state._replace(sizes=state.sizes.copy()), k, inside[k]) for k in range(LABELS)]
+            waiting = [crossing]
             arguments = [(*job, scratches[k % lanes], owner) for k, job in enumerate(jobs)]
             with ThreadPoolExecutor(lanes) as pool:  # one lane: one job after the other
                 results = list(pool.map(collapse, *zip(*arguments, strict=True)))
