@@ -1,4 +1,5 @@
 import json
+import re
 
 import numpy as np
 import pytest
@@ -365,6 +366,8 @@ def test_demo_writes_its_folder(tmp_path, capsys):
     assert '"boundary_loops": 2' in page and "var THREE=" in page
     printed = capsys.readouterr().out
     assert "outliers dropped" in printed and "triangles" in printed and str(out) in printed
+    mean = re.search(r"the mesh lies ([\d.]+) mm \(mean over its area\)", printed)
+    assert mean is not None and float(mean.group(1)) < 0.5  # noise 2 mm
 
 
 @pytest.mark.parametrize(

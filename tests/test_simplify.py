@@ -112,6 +112,11 @@ def test_zero_tolerance_keeps_the_dense_mesh_and_bad_ones_are_refused():
     for bad in (-1e-3, np.inf, np.nan):
         with pytest.raises(InputError, match="tolerance"):
             simplify_mesh(dense, bad)
+    turned = Mesh(
+        vertices=dense.vertices, faces=np.concatenate([dense.faces[:1, ::-1], dense.faces[1:]])
+    )
+    with pytest.raises(InputError, match="oriented"):
+        simplify_mesh(turned, 1e-3)
 
 
 def test_the_uncertainty_of_the_jets_matches_their_error():

@@ -11,6 +11,8 @@ from pathlib import Path
 __all__ = ["main"]
 
 DEMO_POINTS = 40_000
+#: Points on the demo's mesh whose distance to the true pipe it reports.
+DEMO_SAMPLES = 100_000
 HTML_SUFFIXES = (".html", ".htm")
 #: Options renamed so that each has one meaning and names its units: (command, old): new.
 RENAMED = {
@@ -902,6 +904,7 @@ def _run_inspect(args: argparse.Namespace) -> int:
 def _run_demo(args: argparse.Namespace) -> int:
     from . import io
     from ._kernels._ahead import late_kernels_ahead
+    from .evaluate import sample_surface
     from .pipeline import reconstruct
     from .synthetic import sample_cylinder
 
@@ -919,11 +922,13 @@ def _run_demo(args: argparse.Namespace) -> int:
             report_paths=[args.out / "report.json", args.out / "report.html"],
             preview_path=args.out / "preview.png",
         )
-    distance = sample.distance(result.mesh.vertices)
+    # Over the mesh's area: its vertices crowd at the open ends, where the boundary keeps
+    # the dense mesh's.
+    distance = sample.distance(sample_surface(result.mesh, DEMO_SAMPLES, rng=args.seed)[0])
     if not args.quiet:
         print(
-            f"accuracy    mesh vertices lie {1000 * distance.mean():.2f} mm (mean) and "
-            f"{1000 * distance.max():.2f} mm (max) from the true pipe"
+            f"accuracy    the mesh lies {1000 * distance.mean():.2f} mm (mean over its area) "
+            f"and {1000 * distance.max():.2f} mm (max) from the true pipe"
         )
         names = ("pipe-points.ply", "mesh.ply", "preview.png", "report.json", "report.html")
         written = ", ".join(name for name in names if (args.out / name).exists())

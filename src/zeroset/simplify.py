@@ -34,7 +34,13 @@ from .thresholds import (
     SAMPLE_MARGIN,
     UNCERTAINTIES,
 )
-from .topology import boundary_loops, face_area_vectors, undirected_edges
+from .topology import (
+    boundary_loops,
+    face_area_vectors,
+    is_consistently_oriented,
+    is_edge_manifold,
+    undirected_edges,
+)
 from .types import Mesh
 
 __all__ = ["choose_tolerance", "simplify_mesh", "triangle_grid", "two_sided_errors", "unbias"]
@@ -81,6 +87,12 @@ def simplify_mesh(mesh: Mesh, tolerance: float) -> tuple[Mesh, dict]:
         ``simplify_collapses``; ``simplify_splits``, edges split where a triangle strayed;
         ``simplify_strays``, triangles still farther than the tolerance after the last
         check round (see `two_sided_errors`).
+
+    Raises
+    ------
+    InputError
+        If `tolerance` is negative or not finite, or `mesh` is not edge-manifold and
+        consistently oriented.
     """
     tolerance = float(tolerance)
     if not np.isfinite(tolerance) or tolerance < 0.0:
@@ -88,6 +100,8 @@ def simplify_mesh(mesh: Mesh, tolerance: float) -> tuple[Mesh, dict]:
     counts = {"simplify_collapses": 0, "simplify_splits": 0, "simplify_strays": 0}
     if tolerance == 0.0 or mesh.n_faces == 0:
         return mesh, counts
+    if not (is_edge_manifold(mesh.faces) and is_consistently_oriented(mesh.faces)):
+        raise InputError("mesh is not edge-manifold and consistently oriented")
     samples = np.concatenate([mesh.vertices, mesh.vertices[mesh.faces].mean(axis=1)])
     area_vectors = face_area_vectors(mesh.vertices, mesh.faces)
     normals = np.concatenate(
