@@ -10,10 +10,11 @@ error decides their shape, not a target edge length.
 
 The collapse is phase 2's (`zeroset._kernels.optimize`: Hoppe et al. 1993, §4, with its
 legality and fold tests), with the tolerance as the constraint in place of the energy, and
-onto one of the edge's ends (a half-edge collapse): every vertex stays a vertex of the dense
-mesh, on the surface, so no vertex strays between the samples. The chords then lie inside a
-convex surface; `unbias` moves every vertex along its normal by the mean sag of its faces,
-so that the signed error averages out. Last, every triangle is checked against the dense
+onto one of the edge's ends (a half-edge collapse): every vertex stays a vertex of the
+dense mesh, on the surface, so no vertex strays between the samples. Where an edge does not
+collapse, it is swapped for the other diagonal when that brings the samples nearer within
+the same limits. The chords then lie inside a convex surface; `unbias` moves every vertex
+along its normal by the mean sag of its faces, so that the signed error averages out. Last, every triangle is checked against the dense
 mesh over its whole area (`two_sided_errors`), and the longest edge of one that strays is
 split. Boundary vertices stay where they are and boundary edges are kept: the boundary
 loops are the dense mesh's own.

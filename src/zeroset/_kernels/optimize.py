@@ -699,6 +699,26 @@ def try_collapse(state, scratch, i, j, kappa, c_rep, min_cos, force, result):
 
 
 @jit
+def _facing(state, scratch, normals, pts, face, n_new, h, min_cos):
+    # Whether every point of pts lies on a candidate face (face, into scratch.new_faces)
+    # whose normal is within arccos(min_cos) of the point's own (normals (N, 3), unit).
+    new_faces, face_normals = scratch.new_faces, scratch.sphere  # the spheres are spent
+    for t in range(n_new):
+        nx, ny, nz, _ = _normal(state.V, h, new_faces[t, 0], new_faces[t, 1], new_faces[t, 2])
+        face_normals[t, 0], face_normals[t, 1], face_normals[t, 2] = nx, ny, nz
+    for q in range(pts.shape[0]):
+        t, p = face[q], pts[q]
+        cos = (
+            face_normals[t, 0] * normals[p, 0]
+            + face_normals[t, 1] * normals[p, 1]
+            + face_normals[t, 2] * normals[p, 2]
+        )
+        if cos < min_cos:
+            return False
+    return True
+
+
+@jit
 def try_collapse_within(state, scratch, normals, i, j, tolerance2, min_cos):
     """Collapse edge (i, j) onto one of its ends if that is legal and every point on the
     faces it changes stays within sqrt(`tolerance2`) of the new faces, on a face whose
@@ -748,19 +768,8 @@ def try_collapse_within(state, scratch, normals, i, j, tolerance2, min_cos):
         return ENERGY_INCREASE
     if not _fold_ok(state, scratch, region, n_region, scratch.new_faces, n_new, h, min_cos):
         return BAD_DIHEDRAL
-    new_faces, face_normals = scratch.new_faces, scratch.sphere  # the spheres are spent
-    for t in range(n_new):
-        nx, ny, nz, _ = _normal(V, h, new_faces[t, 0], new_faces[t, 1], new_faces[t, 2])
-        face_normals[t, 0], face_normals[t, 1], face_normals[t, 2] = nx, ny, nz
-    for q in range(n):
-        t, p = face[q], pts[q]
-        cos = (
-            face_normals[t, 0] * normals[p, 0]
-            + face_normals[t, 1] * normals[p, 1]
-            + face_normals[t, 2] * normals[p, 2]
-        )
-        if cos < min_cos:
-            return BAD_DIHEDRAL
+    if not _facing(state, scratch, normals, pts, face, n_new, h, min_cos):
+        return BAD_DIHEDRAL
     _apply_collapse(state, i, j, h, scratch.edge, n_edge)
     _reassign(state, pts, scratch.global_face, face, bary, d2)
     return ACCEPTED
@@ -849,18 +858,18 @@ def try_split(state, scratch, i, j, kappa, c_rep, min_cos, force, result):
 
 
 @jit
-def try_swap(state, scratch, i, j, kappa, c_rep, min_cos, force, result):
-    """Swap interior edge (i, j) for the other diagonal (k, m) if legal and lowering energy.
-
-    `result` gets the energy change. Returns an outcome code.
-    """
-    V, F, vf, deg, alive_v = state.V, state.F, state.vf, state.deg, state.alive_v
+def _swap_region(state, scratch, i, j):
+    # Whether interior edge (i, j) may be swapped for the other diagonal (k, m), and what
+    # it changes: scratch.edge holds f1 (running i -> j) and f2, new_faces the faces
+    # (i, m, k) and (m, j, k), global_face f1 and f2. Returns f1, f2, k, m; f1 -1: illegal.
+    F, vf, deg, alive_v = state.F, state.vf, state.deg, state.alive_v
     width = vf.shape[1]
+    no = np.int64(-1)
     if i == j or not alive_v[i] or not alive_v[j]:
-        return ILLEGAL_TOPOLOGY
+        return no, no, no, no
     edge = scratch.edge
     if _edge_faces(state, i, j, edge) != 2:
-        return ILLEGAL_TOPOLOGY  # boundary edges are never swapped
+        return no, no, no, no  # boundary edges are never swapped
     # Name the faces so that f1 runs i -> j and f2 runs j -> i.
     f1, f2 = edge[0], edge[1]
     c = 0
@@ -868,21 +877,47 @@ def try_swap(state, scratch, i, j, kappa, c_rep, min_cos, force, result):
         c += 1
     if F[f1, (c + 1) % 3] != j:
         f1, f2 = f2, f1
+    edge[0], edge[1] = f1, f2
     k, m = _opposite(F, f1, i, j), _opposite(F, f2, i, j)
     if k == m or deg[k] + 1 > width or deg[m] + 1 > width:
-        return ILLEGAL_TOPOLOGY
+        return no, no, no, no
     if _edge_faces(state, k, m, scratch.probe) > 0:
-        return ILLEGAL_TOPOLOGY  # (k, m) is an edge already
+        return no, no, no, no  # (k, m) is an edge already
     ring_i = scratch.ring_i
-    n_i, boundary_i = _neighbours(state, i, ring_i, scratch.seen)
-    n_j, boundary_j = _neighbours(state, j, ring_i, scratch.seen)
+    _, boundary_i = _neighbours(state, i, ring_i, scratch.seen)
+    _, boundary_j = _neighbours(state, j, ring_i, scratch.seen)
     # i and j each lose a face: keep an interior vertex with three faces at least.
     if deg[i] - 1 < (1 if boundary_i else 3) or deg[j] - 1 < (1 if boundary_j else 3):
-        return ILLEGAL_TOPOLOGY
+        return no, no, no, no
     new_faces, global_face = scratch.new_faces, scratch.global_face
     new_faces[0, 0], new_faces[0, 1], new_faces[0, 2] = i, m, k
     new_faces[1, 0], new_faces[1, 1], new_faces[1, 2] = m, j, k
     global_face[0], global_face[1] = f1, f2
+    return f1, f2, k, m
+
+
+@jit
+def _apply_swap(state, i, j, f1, f2, k, m):
+    F, vf, deg = state.F, state.vf, state.deg
+    F[f1, 0], F[f1, 1], F[f1, 2] = i, m, k
+    F[f2, 0], F[f2, 1], F[f2, 2] = m, j, k
+    _remove_face(vf, deg, j, f1)
+    _add_face(vf, deg, m, f1)
+    _remove_face(vf, deg, i, f2)
+    _add_face(vf, deg, k, f2)
+
+
+@jit
+def try_swap(state, scratch, i, j, kappa, c_rep, min_cos, force, result):
+    """Swap interior edge (i, j) for the other diagonal (k, m) if legal and lowering energy.
+
+    `result` gets the energy change. Returns an outcome code.
+    """
+    V = state.V
+    f1, f2, k, m = _swap_region(state, scratch, i, j)
+    if f1 < 0:
+        return ILLEGAL_TOPOLOGY
+    edge, new_faces, global_face = scratch.edge, scratch.new_faces, scratch.global_face
     two = np.int64(2)  # a literal 2 would compile each callee once more, for Literal[int](2)
     pts, old = _gather_points(state, edge, two, scratch.pts)
     old += kappa * ((V[i, 0] - V[j, 0]) ** 2 + (V[i, 1] - V[j, 1]) ** 2 + (V[i, 2] - V[j, 2]) ** 2)
@@ -901,12 +936,37 @@ def try_swap(state, scratch, i, j, kappa, c_rep, min_cos, force, result):
         return ENERGY_INCREASE
     if not _fold_ok(state, scratch, edge, two, new_faces, two, h, min_cos):
         return BAD_DIHEDRAL
-    F[f1, 0], F[f1, 1], F[f1, 2] = i, m, k
-    F[f2, 0], F[f2, 1], F[f2, 2] = m, j, k
-    _remove_face(vf, deg, j, f1)
-    _add_face(vf, deg, m, f1)
-    _remove_face(vf, deg, i, f2)
-    _add_face(vf, deg, k, f2)
+    _apply_swap(state, i, j, f1, f2, k, m)
+    _reassign(state, pts, global_face, face, bary, d2)
+    return ACCEPTED
+
+
+@jit
+def try_swap_within(state, scratch, normals, i, j, tolerance2, min_cos):
+    """Swap interior edge (i, j) for the other diagonal if that is legal, brings the points
+    on its two faces nearer (their squared distances summed) and keeps each within
+    sqrt(`tolerance2`) of a face within arccos(`min_cos`) of its normal (as
+    `try_collapse_within`). Returns an outcome code."""
+    f1, f2, k, m = _swap_region(state, scratch, i, j)
+    if f1 < 0:
+        return ILLEGAL_TOPOLOGY
+    edge, new_faces, global_face = scratch.edge, scratch.new_faces, scratch.global_face
+    two = np.int64(2)
+    pts, old = _gather_points(state, edge, two, scratch.pts)
+    n = pts.shape[0]
+    face, bary, d2 = scratch.face[:n], scratch.bary[:n], scratch.d2[:n]
+    _guesses(state, pts, global_face, two, face)
+    near = scratch.near
+    near[:2, :2] = True
+    h = scratch.position  # no corner is the new vertex; unused
+    new = _project_local(state, scratch, pts, new_faces, two, near, h, face, bary, d2, tolerance2)
+    if new >= old:
+        return ENERGY_INCREASE
+    if not _fold_ok(state, scratch, edge, two, new_faces, two, h, min_cos):
+        return BAD_DIHEDRAL
+    if not _facing(state, scratch, normals, pts, face, two, h, min_cos):
+        return BAD_DIHEDRAL
+    _apply_swap(state, i, j, f1, f2, k, m)
     _reassign(state, pts, global_face, face, bary, d2)
     return ACCEPTED
 
@@ -1028,8 +1088,9 @@ def run_within_pass(
     state, scratch, normals, owner, label, edges, tolerance2, min_cos, tally, deferred
 ):  # fmt: skip
     """Try `try_collapse_within` on every edge of `edges` (E, 2), in that order; after a
-    collapse, the edges around its vertex join the end of the queue. `tally` (4,) int64
-    counts the outcomes.
+    collapse, the edges around its vertex join the end of the queue; where no collapse is
+    made, `try_swap_within` is tried, and after a swap the edges around the new diagonal's
+    ends join the queue. `tally` (3, 4) int64 counts the outcomes (rows as in `run_pass`).
 
     With `label` >= 0, an edge is tried only if every face around its ends has all its
     corners labelled `label` in `owner` (Vc,) int64 (see `_owned`); the others go to
@@ -1038,7 +1099,7 @@ def run_within_pass(
 
     Returns the number of collapses and of deferred edges.
     """
-    F, vf, deg, alive_v = state.F, state.vf, state.deg, state.alive_v
+    F, alive_v = state.F, state.alive_v
     capacity = max(4 * edges.shape[0], 1024)
     queue = np.zeros((capacity, 2), dtype=np.int64)
     n = min(edges.shape[0], capacity)
@@ -1058,15 +1119,32 @@ def run_within_pass(
                 n_deferred += 1
             continue
         outcome = try_collapse_within(state, scratch, normals, i, j, tolerance2, min_cos)
-        tally[outcome] += 1
-        if outcome != ACCEPTED:
+        tally[COLLAPSE, outcome] += 1
+        if outcome == ACCEPTED:
+            done += 1
+            tail = _push_edges(state, i, queue, tail, head)
             continue
-        done += 1
-        for k in range(deg[i]):
-            f = vf[i, k]
-            for c in range(3):
-                if tail - head < capacity and F[f, c] == i:
-                    slot = tail % capacity
-                    queue[slot, 0], queue[slot, 1] = i, F[f, (c + 1) % 3]
-                    tail += 1
+        outcome = try_swap_within(state, scratch, normals, i, j, tolerance2, min_cos)
+        tally[SWAP, outcome] += 1
+        if outcome == ACCEPTED:
+            # The new diagonal's ends, corners 1 and 2 of the first face (i, m, k): their
+            # edges may collapse now.
+            f1 = scratch.edge[0]
+            tail = _push_edges(state, F[f1, 1], queue, tail, head)
+            tail = _push_edges(state, F[f1, 2], queue, tail, head)
     return done, n_deferred
+
+
+@jit
+def _push_edges(state, v, queue, tail, head):
+    # Queue the edges from v, one per face around it; returns the new tail.
+    F, vf, deg = state.F, state.vf, state.deg
+    capacity = queue.shape[0]
+    for k in range(deg[v]):
+        f = vf[v, k]
+        for c in range(3):
+            if tail - head < capacity and F[f, c] == v:
+                slot = tail % capacity
+                queue[slot, 0], queue[slot, 1] = v, F[f, (c + 1) % 3]
+                tail += 1
+    return tail

@@ -225,7 +225,7 @@ class MeshState:
         scratches = self._scratches(lanes)
 
         def collapse(job_state, label, job_edges, scratch, owner):
-            tally = np.zeros(4, dtype=np.int64)
+            tally = np.zeros((3, 4), dtype=np.int64)
             deferred = np.zeros((max(4 * job_edges.shape[0], 1024), 2), dtype=np.int64)
             done, n_deferred = _kernels.run_within_pass(
                 job_state, scratch, normals, owner, label, job_edges, squared, self.min_cos,
