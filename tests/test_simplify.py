@@ -129,10 +129,14 @@ def test_the_uncertainty_of_the_jets_matches_their_error():
     truth = np.column_stack([rng.uniform(0.2, 0.8, (5000, 2)), np.zeros(5000)])
     error = np.sqrt(np.mean(jets.evaluate(truth)[0] ** 2))
     assert 0.5 < jets.uncertainty(sigma) / error < 2.0
-    tolerance, note = choose_tolerance(jets, sigma, None)
+    tolerance, note = choose_tolerance(jets, sigma, 0.0, None)
     assert tolerance == pytest.approx(2.0 * jets.uncertainty(sigma))
     assert "uncertainty" in note
-    assert choose_tolerance(jets, sigma, 1e-3) == (1e-3, "tolerance = 0.001: given")
+    # Never finer than the dense mesh's chords; a given tolerance is used as it is.
+    chord = 3.0 * tolerance
+    assert choose_tolerance(jets, sigma, chord, None)[0] == chord
+    assert "chord" in choose_tolerance(jets, sigma, chord, None)[1]
+    assert choose_tolerance(jets, sigma, chord, 1e-3) == (1e-3, "tolerance = 0.001: given")
 
 
 @pytest.fixture(scope="module")
@@ -147,7 +151,7 @@ def test_a_pipe_comes_out_in_few_triangles_as_accurate_as_the_dense_mesh(cylinde
     assert simple.n_faces * 10 <= dense.n_faces
     assert result.stats["dense_faces"] == dense.n_faces
     assert 0.0 < result.stats["tolerance"] < 1e-3
-    assert "uncertainty" in result.stats["tolerance_note"]
+    assert "tolerance = " in result.stats["tolerance_note"]
 
     def error(mesh):
         points = sample_surface(mesh, 40_000, rng=1)[0]

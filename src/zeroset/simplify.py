@@ -14,10 +14,11 @@ onto one of the edge's ends (a half-edge collapse): every vertex stays a vertex 
 dense mesh, on the surface, so no vertex strays between the samples. Where an edge does not
 collapse, it is swapped for the other diagonal when that brings the samples nearer within
 the same limits. The chords then lie inside a convex surface; `unbias` moves every vertex
-along its normal by the mean sag of its faces, so that the signed error averages out. Last, every triangle is checked against the dense
-mesh over its whole area (`two_sided_errors`), and the longest edge of one that strays is
-split. Boundary vertices stay where they are and boundary edges are kept: the boundary
-loops are the dense mesh's own.
+along its normal by the mean sag of its faces, so that the signed error averages out.
+Last, every triangle is checked against the dense mesh over its whole area
+(`two_sided_errors`), and the longest edge of one that strays is split. Boundary vertices
+stay where they are and boundary edges are kept: the boundary loops are the dense mesh's
+own.
 """
 
 from __future__ import annotations
@@ -47,14 +48,18 @@ from .types import Mesh
 __all__ = ["choose_tolerance", "simplify_mesh", "triangle_grid", "two_sided_errors", "unbias"]
 
 
-def choose_tolerance(surface: Surface, noise: float, given: float | None) -> tuple[float, str]:
+def choose_tolerance(
+    surface: Surface, noise: float, chord: float, given: float | None
+) -> tuple[float, str]:
     """The tolerance of `simplify_mesh` (data units) and one line on how it was chosen.
 
     `given` (data units) when not None; else ``UNCERTAINTIES`` times the surface's own
-    uncertainty for points of noise level `noise` (`zeroset.surface.Surface.uncertainty`):
-    a mesh that close to the fitted surface differs from it by less than the fit itself
-    is known, at two standard errors. A surface that states no uncertainty keeps the
-    dense mesh (0).
+    uncertainty for points of noise level `noise` (`zeroset.surface.Surface.uncertainty`),
+    a mesh that close to the fitted surface differing from it by less than the fit itself
+    is known, but no less than `chord`, the sag the dense mesh's own chords may have
+    (R45: `zeroset.refine.sag_tolerance` where the surface bends little): the dense mesh is not
+    followed closer than it follows the surface. A surface that states no uncertainty
+    keeps the dense mesh (0).
     """
     if given is not None:
         return float(given), f"tolerance = {float(given):.4g}: given"
@@ -62,10 +67,13 @@ def choose_tolerance(surface: Surface, noise: float, given: float | None) -> tup
     if uncertainty is None:
         return 0.0, "tolerance = 0: the surface states no uncertainty; the dense mesh is kept"
     tolerance = UNCERTAINTIES * uncertainty
-    return tolerance, (
-        f"tolerance = {tolerance:.4g}: {UNCERTAINTIES:g} x the surface's uncertainty "
-        f"{uncertainty:.4g} (noise {noise:.4g} x sqrt(6 / points per jet))"
+    note = (
+        f"{UNCERTAINTIES:g} x the surface's uncertainty {uncertainty:.4g} "
+        f"(noise {noise:.4g} x sqrt(6 / points per jet))"
     )
+    if chord > tolerance:
+        return chord, f"tolerance = {chord:.4g}: the dense mesh's chord sag (above {note})"
+    return tolerance, f"tolerance = {tolerance:.4g}: {note}"
 
 
 def simplify_mesh(mesh: Mesh, tolerance: float) -> tuple[Mesh, dict]:

@@ -46,6 +46,7 @@ from .thresholds import (
     BRIDGE_REACH,
     BRIDGE_STEP,
     BRIDGES_NOTED,
+    CHORD_NOISE,
     HOLE_BALL,
     HOLE_WIDTH,
     SMOOTH_K,
@@ -605,7 +606,8 @@ def refine(mesh: Mesh, surface: Surface, parameters: Parameters, config) -> tupl
 def simplify(mesh: Mesh, surface: Surface, parameters: Parameters, config):
     """Stage "simplify": few triangles within the tolerance of the dense `mesh`
     (`zeroset.simplify`), the tolerance chosen from the `surface` unless given."""
-    tolerance, note = choose_tolerance(surface, parameters.quadric_noise, config.tolerance)
+    chord = CHORD_NOISE * parameters.noise  # R45: the sag the dense chords may have
+    tolerance, note = choose_tolerance(surface, parameters.quadric_noise, chord, config.tolerance)
     simple, counts = simplify_mesh(mesh, tolerance)
     return simple, {
         "tolerance": tolerance,

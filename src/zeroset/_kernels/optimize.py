@@ -908,6 +908,24 @@ def _apply_swap(state, i, j, f1, f2, k, m):
 
 
 @jit
+def _swap_projection(state, scratch, limit2):
+    # The points on the two faces of a swap (`_swap_region`) projected onto its two new
+    # faces: pts, their summed squared distances before and after (inf once one lies
+    # farther than sqrt(limit2)), and face, bary, d2 of the new projection.
+    two = np.int64(2)  # a literal 2 would compile each callee once more, for Literal[int](2)
+    pts, old = _gather_points(state, scratch.edge, two, scratch.pts)
+    n = pts.shape[0]
+    face, bary, d2 = scratch.face[:n], scratch.bary[:n], scratch.d2[:n]
+    _guesses(state, pts, scratch.global_face, two, face)
+    scratch.near[:2, :2] = True
+    h = scratch.position  # no corner is the new vertex; unused
+    new = _project_local(
+        state, scratch, pts, scratch.new_faces, two, scratch.near, h, face, bary, d2, limit2
+    )
+    return pts, old, new, face, bary, d2
+
+
+@jit
 def try_swap(state, scratch, i, j, kappa, c_rep, min_cos, force, result):
     """Swap interior edge (i, j) for the other diagonal (k, m) if legal and lowering energy.
 
@@ -917,27 +935,20 @@ def try_swap(state, scratch, i, j, kappa, c_rep, min_cos, force, result):
     f1, f2, k, m = _swap_region(state, scratch, i, j)
     if f1 < 0:
         return ILLEGAL_TOPOLOGY
-    edge, new_faces, global_face = scratch.edge, scratch.new_faces, scratch.global_face
-    two = np.int64(2)  # a literal 2 would compile each callee once more, for Literal[int](2)
-    pts, old = _gather_points(state, edge, two, scratch.pts)
+    pts, old, new, face, bary, d2 = _swap_projection(state, scratch, np.inf)
     old += kappa * ((V[i, 0] - V[j, 0]) ** 2 + (V[i, 1] - V[j, 1]) ** 2 + (V[i, 2] - V[j, 2]) ** 2)
-    n = pts.shape[0]
-    face, bary, d2 = scratch.face[:n], scratch.bary[:n], scratch.d2[:n]
-    _guesses(state, pts, global_face, two, face)
-    near = scratch.near
-    near[:2, :2] = True
-    h = scratch.position  # no corner is the new vertex; unused
-    new = _project_local(state, scratch, pts, new_faces, two, near, h, face, bary, d2)
     new += kappa * ((V[k, 0] - V[m, 0]) ** 2 + (V[k, 1] - V[m, 1]) ** 2 + (V[k, 2] - V[m, 2]) ** 2)
     delta = new - old
     result[0] = delta
     result[1] = -1
     if not force and delta >= 0.0:
         return ENERGY_INCREASE
-    if not _fold_ok(state, scratch, edge, two, new_faces, two, h, min_cos):
+    two = np.int64(2)  # a literal 2 would compile each callee once more, for Literal[int](2)
+    edge, h = scratch.edge, scratch.position  # no corner is the new vertex: h unused
+    if not _fold_ok(state, scratch, edge, two, scratch.new_faces, two, h, min_cos):
         return BAD_DIHEDRAL
     _apply_swap(state, i, j, f1, f2, k, m)
-    _reassign(state, pts, global_face, face, bary, d2)
+    _reassign(state, pts, scratch.global_face, face, bary, d2)
     return ACCEPTED
 
 
@@ -950,19 +961,12 @@ def try_swap_within(state, scratch, normals, i, j, tolerance2, min_cos):
     f1, f2, k, m = _swap_region(state, scratch, i, j)
     if f1 < 0:
         return ILLEGAL_TOPOLOGY
-    edge, new_faces, global_face = scratch.edge, scratch.new_faces, scratch.global_face
-    two = np.int64(2)
-    pts, old = _gather_points(state, edge, two, scratch.pts)
-    n = pts.shape[0]
-    face, bary, d2 = scratch.face[:n], scratch.bary[:n], scratch.d2[:n]
-    _guesses(state, pts, global_face, two, face)
-    near = scratch.near
-    near[:2, :2] = True
-    h = scratch.position  # no corner is the new vertex; unused
-    new = _project_local(state, scratch, pts, new_faces, two, near, h, face, bary, d2, tolerance2)
+    pts, old, new, face, bary, d2 = _swap_projection(state, scratch, tolerance2)
     if new >= old:
         return ENERGY_INCREASE
-    if not _fold_ok(state, scratch, edge, two, new_faces, two, h, min_cos):
+    two = np.int64(2)
+    edge, h, global_face = scratch.edge, scratch.position, scratch.global_face
+    if not _fold_ok(state, scratch, edge, two, scratch.new_faces, two, h, min_cos):
         return BAD_DIHEDRAL
     if not _facing(state, scratch, normals, pts, face, two, h, min_cos):
         return BAD_DIHEDRAL
