@@ -1,7 +1,7 @@
 """Few triangles within a tolerance (`zeroset.simplify`) against the dense mesh and against
 Open3D's quadric decimation; writes its section of docs/benchmarks.md.
 
-Run by hand from the repository root (about 25 minutes on 2 cores; needs the ``bench``
+Run by hand from the repository root (about 10 minutes on 2 cores; needs the ``bench``
 extra for Open3D and matplotlib)::
 
     python benchmarks/bench_simplify.py
@@ -179,7 +179,8 @@ def section(rows: list[dict], curves: dict, machine: dict, seconds: float) -> st
                          f"{seconds / 60:.0f} minutes"),
         "",
         "Each row is one default run: the dense mesh (`tolerance=0`) and the simplified mesh "
-        "(the default, within twice the surface's own uncertainty of the dense mesh). "
+        "(the default: within twice the surface's own uncertainty of the dense mesh, at least "
+        "the dense chords' sag). "
         "*ratio* is dense faces over simplified faces, *change* the simplified mesh's "
         "Chamfer-L1 to the truth over the dense mesh's, *quadric* Open3D's quadric "
         "decimation of the dense mesh to the same face count, measured the same way. Bias is "
