@@ -21,6 +21,7 @@ from zeroset import (
     topology,
 )
 from zeroset.cli import main
+from zeroset.evaluate import points_to_mesh_distance
 from zeroset.neighbours import spatial_order
 from zeroset.stages import choose_parameters
 from zeroset.synthetic import sample_sphere, sample_tee, sample_torus, scan_pipe
@@ -81,8 +82,10 @@ def _sheet_with_a_sparse_strip(n, seed):
 @pytest.mark.slow
 def test_tiled_mesh_is_the_untiled_mesh(client, points, tiles, closed):
     # With default options: the tiles take the parameters reconstruct chooses.
-    untiled = reconstruct(points)
-    tiled = reconstruct_tiled(points, tiles=tiles, client=client)
+    # The dense meshes (tolerance=0): the simplification after them decides at its
+    # tolerance, where the tiles' last bits (1e-12) may tip a collapse.
+    untiled = reconstruct(points, tolerance=0.0)
+    tiled = reconstruct_tiled(points, tiles=tiles, client=client, tolerance=0.0)
     assert tiled.parameters == untiled.parameters
     _same_mesh(tiled.mesh, untiled.mesh)
     assert tiled.stats["tiles"] == np.prod(tiles) and tiled.stats["seam_disagreement"] == 0.0
@@ -199,12 +202,25 @@ def test_tiles_read_from_a_file_with_a_crop_give_the_untiled_mesh(client, tmp_pa
     points = sample_torus(30_000, noise=0.005, rng=6).points
     path = io.write_points(tmp_path / "torus.ply", points)
     box = (-1.5, -1.5, -1.0, 0.4, 1.5, 1.0)
-    untiled = reconstruct(points, crop=box)
+    untiled = reconstruct(points, crop=box, tolerance=0.0)
     tiled = reconstruct_tiled(
-        path, tiles=(4, 2, 1), client=client, parameters=untiled.parameters, crop=box
-    )
+        path, tiles=(4, 2, 1), client=client, parameters=untiled.parameters, crop=box,
+        tolerance=0.0,
+    )  # fmt: skip
     _same_mesh(tiled.mesh, untiled.mesh)
     assert tiled.stats["input_points"] == untiled.stats["input_points"] - untiled.stats["cropped"]
+
+
+@pytest.mark.slow
+def test_the_tiled_default_mesh_lies_within_its_tolerance_of_the_untiled_dense_mesh(client):
+    points = sample_torus(30_000, noise=0.005, rng=3).points
+    untiled = reconstruct(points)
+    tiled = reconstruct_tiled(points, tiles=(2, 2, 2), client=client)
+    assert tiled.stats["tolerance"] == pytest.approx(untiled.stats["tolerance"], rel=1e-9)
+    assert tiled.mesh.n_faces == pytest.approx(untiled.mesh.n_faces, rel=0.05)
+    assert tiled.mesh.n_faces < untiled.dense_mesh.n_faces / 3
+    away = points_to_mesh_distance(tiled.mesh.vertices, untiled.dense_mesh)
+    assert away.max() <= untiled.stats["tolerance"]
 
 
 def _torus_and_scatter():
@@ -256,8 +272,8 @@ def test_tiles_oriented_towards_a_sensor_agree_with_the_untiled_run(client):
 @pytest.mark.slow
 def test_tiles_whose_neighbourhoods_reach_further_widen_their_halos(client):
     points = _sheet_with_a_sparse_strip(40_000, 0)
-    untiled = reconstruct(points)
-    tiled = reconstruct_tiled(points, tiles=(4, 4, 1), client=client)
+    untiled = reconstruct(points, tolerance=0.0)
+    tiled = reconstruct_tiled(points, tiles=(4, 4, 1), client=client, tolerance=0.0)
     assert tiled.stats["tiles_grown"] > 0 and tiled.stats["tiles_failed"] == 0
     assert tiled.stats["seam_vertex_gap"] < 1e-12
     _same_mesh(tiled.mesh, untiled.mesh)
