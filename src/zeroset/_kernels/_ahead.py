@@ -3,10 +3,10 @@
 A fresh install has no compiled kernels, and a run compiles each when it first calls it,
 one after another; most of a first run is that. The kernels a run calls after its first
 stages (the orientation's, the jets' blend, the closest points on the mesh behind a report's
-distances, the simplification's collapses, and phase 2's moves) need none of their
-results, so a second process started with the command compiles them into Numba's cache on
-another core while the first stages compile theirs; the run then loads them
-(docs/benchmarks.md, "First run"). Once they are cached, no process is started.
+distances, and phase 2's moves) need none of their results, so a second process started
+with the command compiles them into Numba's cache on another core while the first stages
+compile theirs; the run then loads them (docs/benchmarks.md, "First run"). Once they are
+cached, no process is started.
 """
 
 from __future__ import annotations
@@ -24,23 +24,20 @@ import numpy as np
 __all__ = [
     "compile_late_kernels",
     "compile_phase2_kernels",
-    "compile_simplify_kernels",
     "late_kernels_ahead",
     "late_kernels_cached",
 ]
 
 
 def _late_kernels(optimize: bool = False) -> list:
-    """The dispatchers `compile_late_kernels` compiles, the pass of collapses (the largest
-    that `compile_simplify_kernels` compiles), and with `optimize` the pass of phase 2's
-    moves (the largest that `compile_phase2_kernels` compiles)."""
+    """The dispatchers `compile_late_kernels` compiles, and with `optimize` the pass of
+    phase 2's moves (the largest that `compile_phase2_kernels` compiles)."""
     from .evaluate import _closest_face_rows
     from .jets import _blend_rows
-    from .optimize import run_pass, run_within_pass
+    from .optimize import run_pass
     from .orientation import _component_extremes, _propagate_signs
 
     late = [_component_extremes, _propagate_signs, _blend_rows, _closest_face_rows]
-    late.append(run_within_pass)
     return [*late, run_pass] if optimize else late
 
 
@@ -72,39 +69,22 @@ def compile_late_kernels() -> None:
     vertices = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
     faces = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]], dtype=np.int64)
     near = np.array([[0.2, 0.2, 0.9], [2.0, 0.1, 0.1]])
+    # The closest points first: stage "simplify" needs them, right after "refine".
+    closest_points_on_mesh(near, vertices, faces)
     one = np.zeros(4, dtype=np.int64)
     component_extremes(vertices, one, 1)
     propagate_signs(np.arange(4), np.array([-9999, 0, 0, 0]), vertices, np.ones(4))
     frames = np.broadcast_to(np.eye(3), (4, 3, 3))
     indices, distances = np.tile(np.arange(4), (2, 1)), np.ones((2, 4))
     blend_rows(near, indices, distances, vertices, frames, np.zeros((4, COEFFICIENTS)))
-    closest_points_on_mesh(near, vertices, faces)
-
-
-def compile_simplify_kernels() -> None:
-    """Compile the simplification's kernels for the signatures `zeroset.simplify` calls
-    them with, on the convex hull of 60 points on a unit sphere."""
-    from ..simplify import simplify_mesh
-
-    mesh, _ = _sphere_hull()
-    simplify_mesh(mesh, 0.1)
 
 
 def compile_phase2_kernels() -> None:
     """Compile phase 2's kernels for the signatures `zeroset.optimize` calls them with, by
     optimising the convex hull of 60 points on a unit sphere against 400 noisy ones."""
-    from ..optimization import optimize_mesh
-
-    mesh, points = _sphere_hull()
-    rng = np.random.default_rng(1)
-    optimize_mesh(mesh, points + rng.normal(scale=0.01, size=points.shape))
-
-
-def _sphere_hull():
-    """The convex hull (a Mesh, outward) of the first 60 of 400 random points (400, 3) on
-    a unit sphere, and the points."""
     from scipy.spatial import ConvexHull
 
+    from ..optimization import optimize_mesh
     from ..types import Mesh
 
     rng = np.random.default_rng(0)
@@ -115,24 +95,21 @@ def _sphere_hull():
     inward = np.einsum("ij,ij->i", np.cross(b - a, c - a), a + b + c) < 0.0
     faces[inward] = faces[inward][:, ::-1]
     used, faces = np.unique(faces, return_inverse=True)
-    return Mesh(vertices=points[used], faces=faces.reshape(-1, 3)), points
+    mesh = Mesh(vertices=points[used], faces=faces.reshape(-1, 3))
+    optimize_mesh(mesh, points + rng.normal(scale=0.01, size=points.shape))
 
 
 @contextmanager
 def late_kernels_ahead(*, optimize: bool = False) -> Iterator[subprocess.Popen | None]:
     """Within the block, a quiet process compiles the late kernels into Numba's cache
-    (`compile_late_kernels`, `compile_simplify_kernels`, then with `optimize`
-    `compile_phase2_kernels`), unless they
+    (`compile_late_kernels`, then with `optimize` `compile_phase2_kernels`), unless they
     are cached already; it yields that process or None. A run that reaches a kernel first
     compiles it itself, as without it; a process still at work when the block ends is
     stopped (Numba renames each cache file into place once written, so none is left half
     written)."""
     process = None
     if not late_kernels_cached(optimize):
-        code = (
-            f"import {__name__} as ahead; ahead.compile_late_kernels(); "
-            "ahead.compile_simplify_kernels()"
-        )
+        code = f"import {__name__} as ahead; ahead.compile_late_kernels()"
         if optimize:
             code += "; ahead.compile_phase2_kernels()"
         process = subprocess.Popen(
