@@ -40,7 +40,7 @@ def _run(sample):
     from zeroset.inspect import inspect_pipe
 
     start = time.perf_counter()
-    mesh = reconstruct(sample.points, viewpoints=sample.viewpoints, progress=False).mesh
+    mesh = reconstruct(sample.points, viewpoints=sample.viewpoints, progress=False).dense_mesh
     middle = time.perf_counter()
     inspection = inspect_pipe(mesh, sample.points, viewpoints=sample.viewpoints)
     return mesh, inspection, middle - start, time.perf_counter() - middle

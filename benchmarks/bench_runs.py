@@ -48,7 +48,7 @@ def _inspect(sample):
     from zeroset.inspect import inspect_pipe
 
     start = time.perf_counter()
-    mesh = reconstruct(sample.points, viewpoints=sample.viewpoints, progress=False).mesh
+    mesh = reconstruct(sample.points, viewpoints=sample.viewpoints, progress=False).dense_mesh
     middle = time.perf_counter()
     inspection = inspect_pipe(mesh, sample.points, viewpoints=sample.viewpoints)
     return inspection, middle - start, time.perf_counter() - middle
@@ -333,7 +333,7 @@ def _timing() -> list[str]:
     from zeroset.synthetic import random_pipe_run
 
     sample = random_pipe_run(0, defects=3).scan(rotation_step=1.8)
-    mesh = reconstruct(sample.points, viewpoints=sample.viewpoints, progress=False).mesh
+    mesh = reconstruct(sample.points, viewpoints=sample.viewpoints, progress=False).dense_mesh
     runs = []
     for _ in range(3):
         start = time.perf_counter()

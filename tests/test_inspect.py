@@ -69,8 +69,10 @@ STATIONS = (0.5, 1.0, 1.5)
 
 
 def _reconstructed(sample):
-    """The phase-1 mesh of a sample, oriented by its viewpoints when it has them."""
-    return reconstruct(sample.points, viewpoints=sample.viewpoints, progress=False).mesh
+    """The phase-1 dense mesh of a sample (the one the CLI inspects), oriented by its
+    viewpoints when it has them."""
+    result = reconstruct(sample.points, viewpoints=sample.viewpoints, progress=False)
+    return result.dense_mesh
 
 
 def _found(inspection, truth: dict):
