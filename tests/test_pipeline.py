@@ -242,8 +242,8 @@ def test_method_of_cubes_keeps_topology_and_accuracy_with_better_triangles(
     # Both contoured meshes as they are, vertices projected but no edge split: refinement
     # splits wherever the chords sag, whichever contouring made them.
     sample, _ = request.getfixturevalue(name)
-    marching = reconstruct(sample.points, refine_levels=0)
-    result = reconstruct(sample.points, contour="cubes", refine_levels=0)
+    marching = reconstruct(sample.points, refine_levels=0, tolerance=0.0)
+    result = reconstruct(sample.points, contour="cubes", refine_levels=0, tolerance=0.0)
     mesh = result.mesh
     assert result.parameters.cube_size == marching.parameters.cube_size
     assert len(topology.boundary_loops(mesh.faces)) == loops

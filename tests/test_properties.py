@@ -10,6 +10,8 @@ What is exact and what is only geometric follows from how the pipeline works:
 - Any other translation or scale perturbs the local coordinates by rounding (about
   ``ulp(|t|)``), which moves the mesh by as little, except where a discrete choice (a point
   on an averaging-cell border, a sign at a grid vertex) flips: geometric, but tight.
+- The properties hold for phase 1's dense mesh (``tolerance=0``): the simplification after
+  it decides each collapse at its tolerance, where such rounding tips greedy choices.
 - A quarter turn about an axis maps the lattice onto itself, and the parameters are
   measured on every point of clouds of at most ``WIDE_ROWS`` points: the same grid values up
   to rounding, so the same mesh vertices. A polygon may be split into triangles from
@@ -262,8 +264,8 @@ def assert_on_true_surface(mesh: Mesh, shape: Shape, sample, cube_size: float) -
 
 def check_rigid_motion(shape: Shape, rotation, translation, contour: str) -> None:
     sample = shape.sample()
-    before = reconstruct(sample.points, contour=contour)
-    after = reconstruct(sample.points @ rotation.T + translation, contour=contour)
+    before = reconstruct(sample.points, contour=contour, tolerance=0.0)
+    after = reconstruct(sample.points @ rotation.T + translation, contour=contour, tolerance=0.0)
     cube_size = before.parameters.cube_size
     # Nearly the same parameters: above WIDE_ROWS points, the noise and spacing are measured
     # on the first WIDE_ROWS in spatial order, a corner of the cloud that a rotation changes
@@ -309,9 +311,13 @@ def test_quarter_turns_keep_the_lattice_and_the_vertices(shape, rotation, transl
     # rotation rounds differently (noise-free clouds on a grid make such ties); the
     # lattice and its contour cannot. test_rim.py turns noisy clouds with their cut rims.
     points = on_exact_grid(shape.sample().points)
-    before = reconstruct(points, contour=contour, refine_levels=0, rim="cubes")
+    before = reconstruct(points, contour=contour, refine_levels=0, rim="cubes", tolerance=0.0)
     after = reconstruct(
-        points @ rotation.T + translation, contour=contour, refine_levels=0, rim="cubes"
+        points @ rotation.T + translation,
+        contour=contour,
+        refine_levels=0,
+        rim="cubes",
+        tolerance=0.0,
     )
     assert after.parameters.cube_size == pytest.approx(before.parameters.cube_size, rel=1e-12)
     expected = moved(before.mesh, rotation, translation)
@@ -332,8 +338,8 @@ def check_exact_translation(shape: Shape, translation, contour: str) -> None:
     points = on_exact_grid(shape.sample().points)
     shifted = points + translation
     assert np.array_equal(shifted - translation, points)  # the translation is exact
-    before = reconstruct(points, contour=contour)
-    after = reconstruct(shifted, contour=contour)
+    before = reconstruct(points, contour=contour, tolerance=0.0)
+    after = reconstruct(shifted, contour=contour, tolerance=0.0)
     # The local frame moves with the points, bit for bit, and so does everything in it.
     assert np.array_equal(after.offset, before.offset + translation)
     assert np.array_equal(after.field.values, before.field.values, equal_nan=True)
@@ -365,8 +371,8 @@ def test_exact_translations_give_the_same_mesh_translated_for_large_clouds(
 @pytest.mark.slow
 def test_translations_move_the_mesh_up_to_rounding(shape, translation, contour):
     sample = shape.sample()
-    before = reconstruct(sample.points, contour=contour)
-    after = reconstruct(sample.points + translation, contour=contour)
+    before = reconstruct(sample.points, contour=contour, tolerance=0.0)
+    after = reconstruct(sample.points + translation, contour=contour, tolerance=0.0)
     cube_size = before.parameters.cube_size
     assert after.parameters.cube_size == pytest.approx(cube_size, rel=1e-6)
     assert topology_of(after.mesh) == topology_of(before.mesh)
@@ -377,8 +383,8 @@ def test_translations_move_the_mesh_up_to_rounding(shape, translation, contour):
 def check_power_of_two(shape: Shape, power: int, contour: str) -> None:
     points = shape.sample().points
     scale = 2.0**power
-    before = reconstruct(points, contour=contour)
-    after = reconstruct(points * scale, contour=contour)
+    before = reconstruct(points, contour=contour, tolerance=0.0)
+    after = reconstruct(points * scale, contour=contour, tolerance=0.0)
     assert after.parameters.cube_size == scale * before.parameters.cube_size
     assert np.array_equal(after.mesh.faces, before.mesh.faces)
     assert np.array_equal(after.mesh.vertices, scale * before.mesh.vertices)
@@ -403,8 +409,8 @@ def test_scaling_large_clouds_by_a_power_of_two_is_exact(shape, power, contour):
 @pytest.mark.slow
 def test_scaling_scales_the_mesh_up_to_rounding(shape, scale, contour):
     points = shape.sample().points
-    before = reconstruct(points, contour=contour)
-    after = reconstruct(points * scale, contour=contour)
+    before = reconstruct(points, contour=contour, tolerance=0.0)
+    after = reconstruct(points * scale, contour=contour, tolerance=0.0)
     cube_size = after.parameters.cube_size
     assert cube_size == pytest.approx(scale * before.parameters.cube_size, rel=1e-6)
     assert topology_of(after.mesh) == topology_of(before.mesh)
@@ -415,8 +421,8 @@ def test_scaling_scales_the_mesh_up_to_rounding(shape, scale, contour):
 def check_point_order(shape: Shape, permutation_seed: int, contour: str) -> None:
     points = shape.sample().points
     order = np.random.default_rng(permutation_seed).permutation(points.shape[0])
-    before = reconstruct(points, contour=contour)
-    after = reconstruct(points[order], contour=contour)
+    before = reconstruct(points, contour=contour, tolerance=0.0)
+    after = reconstruct(points[order], contour=contour, tolerance=0.0)
     # The points are put in an order of their own (spatial_order): bit for bit the same.
     assert np.array_equal(after.mesh.faces, before.mesh.faces)
     assert np.array_equal(after.mesh.vertices, before.mesh.vertices)
@@ -474,7 +480,7 @@ def check_meshes(shape: Shape, rotation, translation) -> None:
     sample = shape.sample()
     points = sample.points @ rotation.T + translation
     for contour in ("marching", "cubes"):
-        result = reconstruct(points, contour=contour)
+        result = reconstruct(points, contour=contour, tolerance=0.0)
         assert_valid_mesh(result.mesh)
         in_place = moved_back(result.mesh, rotation, translation)
         assert_on_true_surface(in_place, shape, sample, result.parameters.cube_size)
