@@ -276,11 +276,12 @@ def test_wrong_sensor_positions_are_not_trusted():
     for key in ("mesh_components", "boundary_loops", "euler_characteristic"):
         assert wrong.stats[key] == plain.stats[key]
     assert topology.is_consistently_oriented(wrong.mesh.faces)
-    gap, _ = cKDTree(plain.mesh.vertices).query(wrong.mesh.vertices)
+    # The dense meshes: the simplified ones differ where rounding tipped a collapse.
+    gap, _ = cKDTree(plain.dense_mesh.vertices).query(wrong.dense_mesh.vertices)
     assert gap.max() < 0.5 * plain.parameters.rho_delta
     # The same surface, however each was split: every vertex of either lies on the other.
     for one, other in ((wrong, plain), (plain, wrong)):
-        gap = points_to_mesh_distance(one.mesh.vertices, other.mesh)
+        gap = points_to_mesh_distance(one.dense_mesh.vertices, other.dense_mesh)
         assert gap.max() < 0.02 * plain.parameters.rho_delta
 
 
