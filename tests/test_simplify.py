@@ -9,7 +9,7 @@ from zeroset import reconstruct, topology
 from zeroset.errors import InputError
 from zeroset.evaluate import closest_points_on_mesh, sample_surface
 from zeroset.jets import fit_jets
-from zeroset.simplify import choose_tolerance, simplify_mesh, triangle_grid
+from zeroset.simplify import choose_tolerance, simplify_mesh, triangle_grid, two_sided_errors
 from zeroset.synthetic import sample_cylinder
 from zeroset.types import Mesh
 
@@ -79,6 +79,19 @@ def test_random_fields_stay_within_the_tolerance_keep_their_boundary_and_orienta
     area = 0.5 * np.linalg.norm(normals, axis=1)
     assert (normals[:, 2] > 0.0).all()
     assert area.min() > 1e-9
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_the_check_after_each_split_round_is_the_whole_check(seed):
+    # The check rounds re-measure only around the split triangles; what they count at the
+    # end is what a check of the whole final mesh finds.
+    dense = height_field(seed, 60)
+    tolerance = 5e-4
+    simple, counts = simplify_mesh(dense, tolerance)
+    assert counts["simplify_splits"] > 100
+    errors = two_sided_errors(simple, dense)
+    assert counts["simplify_strays"] == np.count_nonzero(errors > tolerance)
+    assert np.count_nonzero(errors > tolerance) <= 0.001 * simple.n_faces
 
 
 def test_the_error_is_unbiased_on_a_curved_surface():

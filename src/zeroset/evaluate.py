@@ -612,9 +612,12 @@ def _reference_options(n_samples, taus, tau_unit) -> tuple[int, np.ndarray, str]
     return n_samples, np.array(values), tau_unit
 
 
-def closest_on_arrays(points, vertices, faces):
-    """closest_points_on_mesh on validated arrays (N, 3), (M, 3), (F, 3); no checks."""
-    face, bary, distance2 = _kernels.closest_points_on_mesh(points, vertices, faces)
+def closest_on_arrays(points, vertices, faces, *, in_order=False, hierarchy=None):
+    """closest_points_on_mesh on validated arrays (N, 3), (M, 3), (F, 3); no checks.
+    `in_order` and `hierarchy` as for `zeroset._kernels.closest_points_on_mesh`."""
+    face, bary, distance2 = _kernels.closest_points_on_mesh(
+        points, vertices, faces, in_order=in_order, hierarchy=hierarchy
+    )
     closest = np.einsum("ni,nij->nj", bary, vertices[faces[face]])
     return closest, face, np.sqrt(distance2)
 

@@ -23,11 +23,15 @@ own.
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
+from ._kernels.evaluate import build_hierarchy
 from .errors import InputError
 from .evaluate import closest_on_arrays
-from .optimization import MeshState, project
+from .neighbours import spatial_order
+from .optimization import MeshState, Projection, project
 from .refine import split_edges
 from .surface import Surface
 from .thresholds import (
@@ -118,21 +122,22 @@ def simplify_mesh(mesh: Mesh, tolerance: float) -> tuple[Mesh, dict]:
     )
     normals /= np.maximum(np.linalg.norm(normals, axis=1), 1e-300)[:, None]
     state = MeshState(
-        mesh.vertices, mesh.faces, samples, project(samples, mesh.vertices, mesh.faces),
+        mesh.vertices, mesh.faces, samples, _on_itself(mesh),
         kappa=0.0, c_rep=0.0, max_fold_degrees=MAX_FOLD_DEGREES_SIMPLIFY, spare=0.0,
     )  # fmt: skip
     counts["simplify_collapses"] = state.collapse_within(SAMPLE_MARGIN * tolerance, normals)
     simple = unbias(state.to_mesh(), samples)
     # Every measured point within the margin, so that what lies between them stays within
     # the tolerance; past the last round, what strays past the tolerance itself is counted.
-    errors = two_sided_errors(simple, mesh)
+    check = _Check.of(simple, mesh)
     for _ in range(CHECK_ROUNDS):
-        strays = errors > SAMPLE_MARGIN * tolerance
+        strays = check.errors() > SAMPLE_MARGIN * tolerance
         if not strays.any():
             break
-        simple, split = _split_strays(simple, mesh, strays)
+        simple, split, kept = _split_strays(check, strays)
         counts["simplify_splits"] += split
-        errors = two_sided_errors(simple, mesh)
+        check = check.after_split(simple, kept)
+    errors = check.errors()
     counts["simplify_strays"] = int(np.count_nonzero(errors > tolerance))
     if simple.n_faces >= mesh.n_faces:  # a tolerance too fine for the surface's bends
         return mesh, dict.fromkeys(counts, 0)
@@ -149,20 +154,79 @@ def two_sided_errors(simple: Mesh, dense: Mesh) -> np.ndarray:
     no coarser than the dense mesh's median edge either way: as many as its area needs,
     also for a long thin triangle.
     """
-    spacing = np.median(np.linalg.norm(dense.vertices[dense.faces[:, 1]]
-                                       - dense.vertices[dense.faces[:, 0]], axis=1))  # fmt: skip
-    points, face = triangle_grid(simple, max(float(spacing), 1e-300))
-    _, _, away = closest_on_arrays(points, dense.vertices, dense.faces)
-    error = np.zeros(simple.n_faces)
-    np.maximum.at(error, face, away)
-    edges = undirected_edges(dense.faces)[0]
-    corners = dense.vertices[dense.faces]
-    samples = np.concatenate(
-        [dense.vertices, dense.vertices[edges].mean(axis=1), corners.mean(axis=1)]
-    )
-    _, face, back = closest_on_arrays(samples, simple.vertices, simple.faces)
-    np.maximum.at(error, face, back)
-    return error
+    return _Check.of(simple, dense).errors()
+
+
+class _Check(NamedTuple):
+    """`two_sided_errors`' two halves, kept so that a split re-measures only what changed:
+    `away` (F,) the farthest grid point of each face of `simple` from `dense`; `face`,
+    `back` (S,) the face of `simple` closest to each point of `dense` and its distance;
+    `points` (S, 3) those points, in `spatial_order`; `spacing` the grid's; `tree` the
+    bounding-volume hierarchy of `dense` (`_kernels.evaluate.build_hierarchy`)."""
+
+    simple: Mesh
+    dense: Mesh
+    tree: tuple
+    spacing: float
+    away: np.ndarray
+    points: np.ndarray
+    face: np.ndarray
+    back: np.ndarray
+
+    @classmethod
+    def of(cls, simple: Mesh, dense: Mesh) -> _Check:
+        """Measure every triangle of `simple` against `dense`."""
+        length = np.linalg.norm(dense.vertices[dense.faces[:, 1]]
+                                - dense.vertices[dense.faces[:, 0]], axis=1)  # fmt: skip
+        spacing = max(float(np.median(length)), 1e-300)
+        edges = undirected_edges(dense.faces)[0]
+        points = np.concatenate([dense.vertices, dense.vertices[edges].mean(axis=1),
+                                 dense.vertices[dense.faces].mean(axis=1)])  # fmt: skip
+        points = np.ascontiguousarray(points[spatial_order(points)])
+        _, face, back = closest_on_arrays(points, simple.vertices, simple.faces, in_order=True)
+        tree = build_hierarchy(dense.vertices, dense.faces)
+        away = _farthest_from(simple, np.arange(simple.n_faces), dense, tree, spacing)
+        return cls(simple, dense, tree, spacing, away, points, face, back)
+
+    def errors(self) -> np.ndarray:
+        """(F,) the two-sided error of each face of `simple`."""
+        error = self.away.copy()
+        np.maximum.at(error, self.face, self.back)
+        return error
+
+    def after_split(self, simple: Mesh, kept: np.ndarray) -> _Check:
+        """The check of `simple`, the old mesh split by `_split_strays`: `kept` (F_old,)
+        gives each old face's index in `simple`, -1 where it was split; the faces after
+        the kept ones are new. A point of `dense` keeps its kept face unless a new face is
+        closer; a point on a split face is measured again against all of `simple`."""
+        n_kept = np.count_nonzero(kept >= 0)
+        new = np.arange(n_kept, simple.n_faces)
+        face, back = kept[self.face], self.back.copy()
+        lost = face < 0
+        _, face[lost], back[lost] = closest_on_arrays(
+            self.points[lost], simple.vertices, simple.faces, in_order=True
+        )
+        _, near_face, near = closest_on_arrays(
+            self.points, simple.vertices, simple.faces[new], in_order=True
+        )
+        closer = near < back
+        face[closer], back[closer] = new[near_face[closer]], near[closer]
+        away = np.empty(simple.n_faces)
+        away[kept[kept >= 0]] = self.away[kept >= 0]
+        away[new] = _farthest_from(simple, new, self.dense, self.tree, self.spacing)
+        return self._replace(simple=simple, away=away, face=face, back=back)
+
+
+def _farthest_from(
+    mesh: Mesh, rows: np.ndarray, dense: Mesh, tree: tuple, spacing: float
+) -> np.ndarray:
+    """(R,) for each face `rows` (R,) of `mesh`, the farthest point of its grid
+    (`triangle_grid` at `spacing`) from `dense`, whose hierarchy is `tree`."""
+    points, face = triangle_grid(Mesh(vertices=mesh.vertices, faces=mesh.faces[rows]), spacing)
+    _, _, away = closest_on_arrays(points, dense.vertices, dense.faces, hierarchy=tree)
+    farthest = np.zeros(rows.size)
+    np.maximum.at(farthest, face, away)
+    return farthest
 
 
 def triangle_grid(mesh: Mesh, spacing: float) -> tuple[np.ndarray, np.ndarray]:
@@ -230,6 +294,29 @@ def unbias(mesh: Mesh, samples: np.ndarray) -> Mesh:
     return Mesh(vertices=vertices + shift[:, None] * vertex_normals, faces=faces)
 
 
+def _on_itself(mesh: Mesh) -> Projection:
+    """The projection of the vertices and then the face centroids of `mesh` onto it: each
+    vertex at a corner of one of its faces (a vertex of no face at its closest point),
+    each centroid at the middle of its face."""
+    n_v, n_f = mesh.n_vertices, mesh.n_faces
+    face_of_vertex = np.full(n_v, -1, dtype=np.int64)
+    face_of_vertex[mesh.faces.ravel()] = np.repeat(np.arange(n_f), 3)
+    bary = np.zeros((n_v, 3))
+    used = np.flatnonzero(face_of_vertex >= 0)
+    corner = np.argmax(mesh.faces[face_of_vertex[used]] == used[:, None], axis=1)
+    bary[used, corner] = 1.0
+    distance2 = np.zeros(n_v + n_f)
+    alone = np.flatnonzero(face_of_vertex < 0)
+    if alone.size:
+        lost = project(mesh.vertices[alone], mesh.vertices, mesh.faces)
+        face_of_vertex[alone], bary[alone], distance2[alone] = lost
+    return Projection(
+        face=np.concatenate([face_of_vertex, np.arange(n_f)]),
+        bary=np.concatenate([bary, np.full((n_f, 3), 1.0 / 3.0)]),
+        distance2=distance2,
+    )
+
+
 def _vertex_normals(faces: np.ndarray, n_vertices: int, area_vectors: np.ndarray) -> np.ndarray:
     """(V, 3) the sum of the area vectors (F, 3) of each vertex's faces (not normalised)."""
     normals = np.zeros((n_vertices, 3))
@@ -238,9 +325,12 @@ def _vertex_normals(faces: np.ndarray, n_vertices: int, area_vectors: np.ndarray
     return normals
 
 
-def _split_strays(simple: Mesh, dense: Mesh, strays: np.ndarray) -> tuple[Mesh, int]:
-    """Split the longest edge of every straying triangle of `simple`; each new vertex
-    goes to its closest point on `dense`."""
+def _split_strays(check: _Check, strays: np.ndarray) -> tuple[Mesh, int, np.ndarray]:
+    """Split the longest edge of every straying triangle (F,) bool of ``check.simple``;
+    each new vertex goes to its closest point on ``check.dense``. Returns the mesh, the
+    edges split, and each old face's index in the new mesh (-1 where it was split;
+    `split_edges` keeps the others first, in order)."""
+    simple, dense = check.simple, check.dense
     edges, corner_edge, _ = undirected_edges(simple.faces)
     corners = simple.vertices[simple.faces]
     length = np.linalg.norm(corners[:, [1, 2, 0]] - corners, axis=2)
@@ -250,5 +340,9 @@ def _split_strays(simple: Mesh, dense: Mesh, strays: np.ndarray) -> tuple[Mesh, 
     split = split_edges(simple, marked)
     vertices = split.vertices.copy()
     new = np.arange(simple.n_vertices, split.n_vertices)
-    vertices[new] = closest_on_arrays(vertices[new], dense.vertices, dense.faces)[0]
-    return Mesh(vertices=vertices, faces=split.faces), int(np.count_nonzero(marked))
+    vertices[new] = closest_on_arrays(
+        vertices[new], dense.vertices, dense.faces, hierarchy=check.tree
+    )[0]
+    unchanged = ~marked[corner_edge].any(axis=1)
+    kept = np.where(unchanged, np.cumsum(unchanged) - 1, -1)
+    return Mesh(vertices=vertices, faces=split.faces), int(np.count_nonzero(marked)), kept

@@ -185,7 +185,7 @@ def build_hierarchy(vertices, faces):
     return triangles, degenerate, order, boxes, leaf_start, leaf_count
 
 
-def closest_points_on_mesh(points, vertices, faces, guess=None, in_order=False):
+def closest_points_on_mesh(points, vertices, faces, guess=None, in_order=False, hierarchy=None):
     """Return the face (N,) int64 holding the closest point to each point, the point's
     barycentric coordinates (N, 3) in it (corner order) and the squared distance (N,).
 
@@ -195,11 +195,13 @@ def closest_points_on_mesh(points, vertices, faces, guess=None, in_order=False):
     points are in that order already (:func:`~zeroset.neighbours.spatial_order`).
     `guess` (N,) int64, a face per point likely to hold its closest point (a previous
     projection's), starts each search with a bound, so that it visits less of the tree;
-    the result is the same but where two faces are equally close.
+    the result is the same but where two faces are equally close. `hierarchy`, the
+    :func:`build_hierarchy` of `vertices` and `faces`, saves building it again for
+    another query on the same mesh.
     """
-    triangles, degenerate, face_of_slot, boxes, leaf_start, leaf_count = build_hierarchy(
-        vertices, faces
-    )
+    if hierarchy is None:
+        hierarchy = build_hierarchy(vertices, faces)
+    triangles, degenerate, face_of_slot, boxes, leaf_start, leaf_count = hierarchy
     n = points.shape[0]
     query = np.arange(n) if in_order else spatial_order(points)
     slot = np.full(n, -1, dtype=np.int64)
