@@ -67,17 +67,19 @@ def build_state(vertices, faces, points, face_of_point, bary, distance2, width, 
     n_v, n_f, n_p = vertices.shape[0], faces.shape[0], points.shape[0]
     vc, fc = n_v + spare_v, n_f + spare_f
     V = np.zeros((vc, 3))
-    V[:n_v] = vertices
     F = np.full((fc, 3), -1, dtype=np.int64)
-    F[:n_f] = faces
+    _copy_rows(V, vertices, n_v)
+    _copy_rows(F, faces, n_f)
     alive_v = np.zeros(vc, dtype=np.bool_)
     alive_f = np.zeros(fc, dtype=np.bool_)
     alive_f[:n_f] = True
     vf = np.full((vc, width), -1, dtype=np.int64)
     deg = np.zeros(vc, dtype=np.int64)
+    n_alive = 0
     for f in range(n_f):
         for corner in range(3):
             v = faces[f, corner]
+            n_alive += not alive_v[v]
             alive_v[v] = True
             vf[v, deg[v]] = f
             deg[v] += 1
@@ -88,7 +90,7 @@ def build_state(vertices, faces, points, face_of_point, bary, distance2, width, 
     pf = face_of_point.copy()
     for p in range(n_p):
         _link(head, nxt, prv, count, pf[p], p)
-    sizes = np.array([n_v, n_f, np.count_nonzero(alive_v), vc, fc], dtype=np.int64)
+    sizes = np.array([n_v, n_f, n_alive, vc, fc], dtype=np.int64)
     return State(
         V, F, alive_v, alive_f, vf, deg, points, pf, bary.copy(), distance2.copy(),
         head, nxt, prv, count, sizes,
@@ -124,6 +126,23 @@ def make_scratch(n_points, width):
         np.zeros(3),
         np.zeros(3),
     )
+
+
+@jit
+def _copy(dst, src):
+    # dst[:] = src for 1-d arrays of one length; a slice assignment from an array would
+    # compile NumPy's shape-mismatch message (seconds of string formatting on a fresh
+    # install).
+    for k in range(src.shape[0]):
+        dst[k] = src[k]
+
+
+@jit
+def _copy_rows(dst, src, n):
+    # dst[:n] = src[:n] for 2-d arrays of one width (see `_copy`).
+    for r in range(n):
+        for c in range(src.shape[1]):
+            dst[r, c] = src[r, c]
 
 
 @jit
@@ -329,7 +348,7 @@ def _region_fold(state, region, n_region, min_cos, faces, h):
     # (at least n_region rows) and `h` are scratch.
     F = state.F
     for r in range(n_region):
-        faces[r] = F[region[r]]
+        _copy(faces[r], F[region[r]])
     return _worst_fold(state, region, n_region, faces, n_region, h, min_cos)
 
 
@@ -495,7 +514,7 @@ def _fit_vertex(
         if weight <= 1e-300:
             break
         trial[0], trial[1], trial[2] = rx / weight, ry / weight, rz / weight
-        trial_face[:] = face  # the guesses; every bary and d2 is written anew
+        _copy(trial_face, face)  # the guesses; every bary and d2 is written anew
         trial_energy = _project_local(
             state, scratch, pts, new_faces, n_new, near, trial, trial_face, trial_bary, trial_d2
         )
@@ -503,11 +522,11 @@ def _fit_vertex(
         if trial_energy >= energy:
             break
         gain = energy - trial_energy
-        h[:] = trial
+        _copy(h, trial)
         energy = trial_energy
-        face[:] = trial_face
-        bary[:] = trial_bary
-        d2[:] = trial_d2
+        _copy(face, trial_face)
+        _copy_rows(bary, trial_bary, bary.shape[0])
+        _copy(d2, trial_d2)
         if energy - target > 2.0 * gain:
             break
     return energy
@@ -625,7 +644,7 @@ def _collapse_region(state, scratch, i, j):
 def _apply_collapse(state, i, j, h, edge, n_edge):
     # Vertex i survives at h; j and the faces on the edge, `edge[:n_edge]`, go.
     V, F, vf, deg = state.V, state.F, state.vf, state.deg
-    V[i] = h
+    _copy(V[i], h)
     for e in range(n_edge):
         f = edge[e]
         state.alive_f[f] = False
@@ -673,9 +692,9 @@ def try_collapse(state, scratch, i, j, kappa, c_rep, min_cos, force, result):
     # solve moves the vertex from there).
     h = scratch.position
     if boundary_i and not boundary_j:
-        h[:] = V[i]
+        _copy(h, V[i])
     elif boundary_j and not boundary_i:
-        h[:] = V[j]
+        _copy(h, V[j])
     else:
         h[:] = 0.5 * (V[i] + V[j])
     n = pts.shape[0]
@@ -745,7 +764,7 @@ def try_collapse_within(state, scratch, normals, i, j, tolerance2, min_cos):
     for end in (i, j):
         if (boundary_i and end == j) or (boundary_j and end == i):
             continue
-        h[:] = V[end]
+        _copy(h, V[end])
         _guesses(state, pts, scratch.global_face, n_new, face)
         within = np.isfinite(
             _project_local(
@@ -838,7 +857,7 @@ def try_split(state, scratch, i, j, kappa, c_rep, min_cos, force, result):
     s = sizes[0]
     sizes[0] += 1
     sizes[2] += 1
-    V[s] = h
+    _copy(V[s], h)
     alive_v[s] = True
     deg[s] = 0
     for e in range(n_edge):
@@ -1041,7 +1060,7 @@ def run_pass(
     capacity = max(8 * edges.shape[0], 1024)
     queue = np.zeros((capacity, 2), dtype=np.int64)
     n = min(edges.shape[0], capacity)
-    queue[:n] = edges[:n]
+    _copy_rows(queue, edges, n)
     head, tail = 0, n
     result = np.zeros(2)
     # A typed False: a literal one would compile each move once more, for Literal[bool],
@@ -1107,7 +1126,7 @@ def run_within_pass(
     capacity = max(4 * edges.shape[0], 1024)
     queue = np.zeros((capacity, 2), dtype=np.int64)
     n = min(edges.shape[0], capacity)
-    queue[:n] = edges[:n]
+    _copy_rows(queue, edges, n)
     head, tail = 0, n
     done = 0
     n_deferred = 0
