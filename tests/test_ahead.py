@@ -53,15 +53,15 @@ def test_a_second_process_compiles_the_late_kernels_into_a_fresh_cache(tmp_path)
 
 
 @pytest.mark.slow
-def test_the_first_demo_compiles_no_late_kernel_itself(tmp_path):
-    # The demo starts the second process; by the time the stages after the first ones
-    # reach a late kernel, it is cached. Checked in the demo's own process: no late kernel
-    # compiled there (a miss), each loaded (a hit).
+def test_the_first_demo_compiles_no_simplification_kernel_itself(tmp_path):
+    # The demo starts the second process, which compiles the simplification's kernels
+    # first; stage simplify waits for them rather than compiling them a second time.
+    # Checked in the demo's own process: none compiled there (a miss), each loaded (a hit).
     demo = (
         "from zeroset import cli\n"
         "from zeroset._kernels import _ahead\n"
         "def counts():\n"
-        "    for kernel in _ahead._late_kernels():\n"
+        "    for kernel in _ahead._simplify_kernels():\n"
         "        stats = kernel.stats\n"
         "        print(kernel.__name__, sum(stats.cache_hits.values()),"
         " sum(stats.cache_misses.values()))\n"
@@ -74,4 +74,4 @@ def test_the_first_demo_compiles_no_late_kernel_itself(tmp_path):
             line.split() for line in _python(demo, tmp_path / "cache").splitlines()
         )
     }
-    assert loaded == {name: (1, 0) for name in loaded} and len(loaded) == 4
+    assert loaded == {name: (1, 0) for name in loaded} and len(loaded) == 7

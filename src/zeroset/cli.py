@@ -571,7 +571,8 @@ def _run_reconstruct(args: argparse.Namespace) -> int:
     if several:
         cloud, registration = _merge(args, clouds, config)
         config = replace(config, viewpoint=None)  # now in every point's sensor position
-    with late_kernels_ahead(optimize=args.optimize):  # on a fresh install
+    simplify = not args.optimize and config.tolerance != 0.0
+    with late_kernels_ahead(optimize=args.optimize, simplify=simplify):  # on a fresh install
         result = reconstruct(
             cloud.points,
             config,
@@ -911,7 +912,7 @@ def _run_demo(args: argparse.Namespace) -> int:
     args.out.mkdir(parents=True, exist_ok=True)  # the demo replaces its own files there
     sample = sample_cylinder(args.points, radius=0.25, length=1.0, noise=0.002, rng=args.seed)
     points_path = io.write_points(args.out / "pipe-points.ply", sample.points)
-    with late_kernels_ahead():  # on a fresh install
+    with late_kernels_ahead(simplify=True):  # on a fresh install
         result = reconstruct(sample.points, progress=not args.quiet, seed=args.seed)
         code = _finish(
             result,

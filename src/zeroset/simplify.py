@@ -27,6 +27,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ._kernels._ahead import await_simplify_kernels
 from ._kernels.evaluate import build_hierarchy
 from .errors import InputError
 from .evaluate import closest_on_arrays
@@ -121,6 +122,7 @@ def simplify_mesh(mesh: Mesh, tolerance: float) -> tuple[Mesh, dict]:
         [_vertex_normals(mesh.faces, mesh.n_vertices, area_vectors), area_vectors]
     )
     normals /= np.maximum(np.linalg.norm(normals, axis=1), 1e-300)[:, None]
+    await_simplify_kernels()  # on a fresh install, while a second process compiles them
     state = MeshState(
         mesh.vertices, mesh.faces, samples, _on_itself(mesh),
         kappa=0.0, c_rep=0.0, max_fold_degrees=MAX_FOLD_DEGREES_SIMPLIFY, spare=0.0,
