@@ -104,17 +104,17 @@ def _closest_face_rows(
     # leaf order, `degenerate` (S,) their flags; `slot` holds a row to start from (-1:
     # none) and gets the row of the closest point, `bary` its barycentric coordinates.
     n_leaves = leaf_start.shape[0]
+    stack = np.zeros(128, dtype=np.int64)  # depth <= log2(n_leaves) + 1 < 64
+    stack_distance = np.zeros(128)
     for i in range(start, stop):
         px, py, pz = points[i, 0], points[i, 1], points[i, 2]
         best, best_slot = np.inf, slot[i]
         bu, bv, bw = 1.0, 0.0, 0.0
         if best_slot >= 0:
             best, bu, bv, bw = closest_point_on_triangle(
-                px, py, pz, triangles[best_slot], degenerate[best_slot]
+                px, py, pz, triangles, best_slot, degenerate[best_slot]
             )
-        stack = np.zeros(128, dtype=np.int64)  # depth <= log2(n_leaves) + 1 < 64
-        stack_distance = np.zeros(128)
-        stack[0] = 1
+        stack[0], stack_distance[0] = 1, 0.0
         top = 1
         while top > 0:
             top -= 1
@@ -124,7 +124,7 @@ def _closest_face_rows(
             if node >= n_leaves:
                 first = leaf_start[node - n_leaves]
                 for s in range(first, first + leaf_count[node - n_leaves]):
-                    d2, u, v, w = closest_point_on_triangle(px, py, pz, triangles[s], degenerate[s])
+                    d2, u, v, w = closest_point_on_triangle(px, py, pz, triangles, s, degenerate[s])
                     if d2 < best:
                         best, best_slot = d2, s
                         bu, bv, bw = u, v, w

@@ -283,19 +283,22 @@ def _add_face(vf, deg, v, f):
 
 
 @jit
-def _corner(V, v, h, axis):
-    return h[axis] if v == H else V[v, axis]
+def _point(V, v, h):
+    # Vertex v's position, or h where v is H: one call per corner, since each call to a
+    # kernel counts references to the arrays it takes (atomically: not free in a loop).
+    if v == H:
+        return h[0], h[1], h[2]
+    return V[v, 0], V[v, 1], V[v, 2]
 
 
 @jit
 def _normal(V, h, a, b, c):
     # Unit normal of triangle (a, b, c), corners H meaning position h; zeros if degenerate.
-    ux = _corner(V, b, h, 0) - _corner(V, a, h, 0)
-    uy = _corner(V, b, h, 1) - _corner(V, a, h, 1)
-    uz = _corner(V, b, h, 2) - _corner(V, a, h, 2)
-    wx = _corner(V, c, h, 0) - _corner(V, a, h, 0)
-    wy = _corner(V, c, h, 1) - _corner(V, a, h, 1)
-    wz = _corner(V, c, h, 2) - _corner(V, a, h, 2)
+    ax, ay, az = _point(V, a, h)
+    bx, by, bz = _point(V, b, h)
+    cx, cy, cz = _point(V, c, h)
+    ux, uy, uz = bx - ax, by - ay, bz - az
+    wx, wy, wz = cx - ax, cy - ay, cz - az
     nx, ny, nz = uy * wz - uz * wy, uz * wx - ux * wz, ux * wy - uy * wx
     length = np.sqrt(nx * nx + ny * ny + nz * nz)
     scale = max(ux * ux + uy * uy + uz * uz, wx * wx + wy * wy + wz * wz)
@@ -387,12 +390,10 @@ def _project_local(
     triangles, degenerate, sphere = scratch.triangles, scratch.degenerate, scratch.sphere
     for t in range(n_new):
         row = triangles[t]
-        va, vb, vc = new_faces[t, 0], new_faces[t, 1], new_faces[t, 2]
-        degenerate[t] = set_triangle(
-            row, _corner(V, va, h, 0), _corner(V, va, h, 1), _corner(V, va, h, 2),
-            _corner(V, vb, h, 0), _corner(V, vb, h, 1), _corner(V, vb, h, 2),
-            _corner(V, vc, h, 0), _corner(V, vc, h, 1), _corner(V, vc, h, 2),
-        )  # fmt: skip
+        ax, ay, az = _point(V, new_faces[t, 0], h)
+        bx, by, bz = _point(V, new_faces[t, 1], h)
+        cx, cy, cz = _point(V, new_faces[t, 2], h)
+        degenerate[t] = set_triangle(row, ax, ay, az, bx, by, bz, cx, cy, cz)
         for axis in range(3):
             sphere[t, axis] = (row[axis] + row[3 + axis] + row[6 + axis]) / 3.0
         radius2 = 0.0
@@ -410,7 +411,7 @@ def _project_local(
         guess = best_face[q]
         if guess >= 0:
             best, u, v, w = closest_point_on_triangle(
-                px, py, pz, triangles[guess], degenerate[guess]
+                px, py, pz, triangles, guess, degenerate[guess]
             )
             best_bary[q, 0], best_bary[q, 1], best_bary[q, 2] = u, v, w
         for t in range(n_new):
@@ -424,7 +425,7 @@ def _project_local(
             )
             if gap > 0.0 and gap * gap >= best:
                 continue
-            d2, u, v, w = closest_point_on_triangle(px, py, pz, triangles[t], degenerate[t])
+            d2, u, v, w = closest_point_on_triangle(px, py, pz, triangles, t, degenerate[t])
             if d2 < best:
                 best = d2
                 best_face[q] = t

@@ -51,12 +51,12 @@ def set_triangle(t, ax, ay, az, bx, by, bz, cx, cy, cz):
 
 
 @jit
-def _closest_on_edge(px, py, pz, t, i, j):
-    # Projection of p onto the line through corners i and j of row t, clamped to the
+def _closest_on_edge(px, py, pz, rows, r, i, j):
+    # Projection of p onto the line through corners i and j of row r, clamped to the
     # segment: its parameter s (the foot is (1 - s) corner_i + s corner_j) and the
     # squared distance.
-    ax, ay, az = t[3 * i], t[3 * i + 1], t[3 * i + 2]
-    ux, uy, uz = t[3 * j] - ax, t[3 * j + 1] - ay, t[3 * j + 2] - az
+    ax, ay, az = rows[r, 3 * i], rows[r, 3 * i + 1], rows[r, 3 * i + 2]
+    ux, uy, uz = rows[r, 3 * j] - ax, rows[r, 3 * j + 1] - ay, rows[r, 3 * j + 2] - az
     length2 = ux * ux + uy * uy + uz * uz
     s = 0.0
     if length2 > 0.0:
@@ -66,22 +66,24 @@ def _closest_on_edge(px, py, pz, t, i, j):
 
 
 @jit
-def closest_point_on_triangle(px, py, pz, t, degenerate):
-    # Closest point to p of the triangle in row t (see set_triangle): its squared distance
-    # and barycentric coordinates (u, v, w), foot = u a + v b + w c, all >= 0, sum 1.
+def closest_point_on_triangle(px, py, pz, rows, r, degenerate):
+    # Closest point to p of the triangle in row r of rows (see set_triangle): its squared
+    # distance and barycentric coordinates (u, v, w), foot = u a + v b + w c, all >= 0,
+    # sum 1. The row is read in place: a view of it would cost a reference count, taken
+    # and dropped atomically, on every call.
     # Inside the triangle the projection onto the plane is the closest point; outside,
     # it lies on an edge opposite a negative coordinate (Ericson 2005, §3.4 and §5.1.5).
     # A degenerate triangle is its three edges.
     check_a = check_b = check_c = True
     if not degenerate:
-        apx, apy, apz = px - t[0], py - t[1], pz - t[2]
-        wb = t[9] * apx + t[10] * apy + t[11] * apz
-        wc = t[12] * apx + t[13] * apy + t[14] * apz
+        apx, apy, apz = px - rows[r, 0], py - rows[r, 1], pz - rows[r, 2]
+        wb = rows[r, 9] * apx + rows[r, 10] * apy + rows[r, 11] * apz
+        wc = rows[r, 12] * apx + rows[r, 13] * apy + rows[r, 14] * apz
         wa = 1.0 - wb - wc
         if wa >= 0.0 and wb >= 0.0 and wc >= 0.0:
-            qx = t[0] + wb * (t[3] - t[0]) + wc * (t[6] - t[0])
-            qy = t[1] + wb * (t[4] - t[1]) + wc * (t[7] - t[1])
-            qz = t[2] + wb * (t[5] - t[2]) + wc * (t[8] - t[2])
+            qx = rows[r, 0] + wb * (rows[r, 3] - rows[r, 0]) + wc * (rows[r, 6] - rows[r, 0])
+            qy = rows[r, 1] + wb * (rows[r, 4] - rows[r, 1]) + wc * (rows[r, 7] - rows[r, 1])
+            qz = rows[r, 2] + wb * (rows[r, 5] - rows[r, 2]) + wc * (rows[r, 8] - rows[r, 2])
             return (px - qx) ** 2 + (py - qy) ** 2 + (pz - qz) ** 2, wa, wb, wc
         check_a, check_b, check_c = wa < 0.0, wb < 0.0, wc < 0.0
     # The nearest of the edges to check: 0 is b -> c, 1 is c -> a, 2 is a -> b.
@@ -89,13 +91,13 @@ def closest_point_on_triangle(px, py, pz, t, degenerate):
     c0, c1, c2 = np.int64(0), np.int64(1), np.int64(2)
     best, edge, s_best = np.inf, 0, 0.0
     if check_a:
-        s_best, best = _closest_on_edge(px, py, pz, t, c1, c2)
+        s_best, best = _closest_on_edge(px, py, pz, rows, r, c1, c2)
     if check_b:
-        s, d2 = _closest_on_edge(px, py, pz, t, c2, c0)
+        s, d2 = _closest_on_edge(px, py, pz, rows, r, c2, c0)
         if d2 < best:
             best, edge, s_best = d2, 1, s
     if check_c:
-        s, d2 = _closest_on_edge(px, py, pz, t, c0, c1)
+        s, d2 = _closest_on_edge(px, py, pz, rows, r, c0, c1)
         if d2 < best:
             best, edge, s_best = d2, 2, s
     if edge == 0:
@@ -118,13 +120,14 @@ def triangle_rows(a, b, c, rows, degenerate):
 def closest_point_rows(points, a, b, c, distance2, bary):
     # closest_point_on_triangle of p_n and triangle (a_n, b_n, c_n) for every row of the
     # (N, 3) arrays; fills (N,) squared distances and (N, 3) barycentric coordinates.
-    t = np.zeros(15)
+    t = np.zeros((1, 15))
+    row = t[0]
     for n in range(points.shape[0]):
         degenerate = set_triangle(
-            t, a[n, 0], a[n, 1], a[n, 2], b[n, 0], b[n, 1], b[n, 2], c[n, 0], c[n, 1], c[n, 2]
+            row, a[n, 0], a[n, 1], a[n, 2], b[n, 0], b[n, 1], b[n, 2], c[n, 0], c[n, 1], c[n, 2]
         )
         d2, u, v, w = closest_point_on_triangle(
-            points[n, 0], points[n, 1], points[n, 2], t, degenerate
+            points[n, 0], points[n, 1], points[n, 2], t, np.int64(0), degenerate
         )
         distance2[n] = d2
         bary[n, 0], bary[n, 1], bary[n, 2] = u, v, w
