@@ -2,7 +2,7 @@
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from zeroset import reconstruct, topology
@@ -50,6 +50,7 @@ def _boundary(mesh: Mesh) -> tuple[np.ndarray, float]:
 
 @settings(max_examples=8, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(seed=st.integers(0, 10_000), tolerance=st.floats(5e-4, 1e-2))
+@example(seed=2747, tolerance=0.0012461220602781858)  # needed 5 check rounds
 def test_random_fields_stay_within_the_tolerance_keep_their_boundary_and_orientation(
     seed, tolerance
 ):

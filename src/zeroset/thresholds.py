@@ -246,6 +246,9 @@ MAX_FOLD_DEGREES_SIMPLIFY = 30.0
 #: them. **Chosen** on the 60k cylinder (a median stray 5 % over the tolerance at 1.0) and
 #: random height fields (7 % past the tolerance between the points at 1.0).
 SAMPLE_MARGIN = 0.8
-#: R47: rounds of the check of every triangle against the dense mesh, each splitting the
-#: longest edge of every triangle that strays. **Chosen** (not recorded).
-CHECK_ROUNDS = 4
+#: R47: most rounds of the check of every triangle against the dense mesh, each splitting
+#: the longest edge of every triangle that strays; the rounds stop when none strays.
+#: **Chosen** on 60 random height fields of the property test (seeded): up to 8 rounds
+#: were needed, and 4 left a triangle up to 1 % past the tolerance in 3 of them; twice the
+#: most seen. A round re-measures only what its splits changed.
+CHECK_ROUNDS = 16
