@@ -122,9 +122,15 @@ def simplify_mesh(mesh: Mesh, tolerance: float) -> tuple[Mesh, dict]:
         [_vertex_normals(mesh.faces, mesh.n_vertices, area_vectors), area_vectors]
     )
     normals /= np.maximum(np.linalg.norm(normals, axis=1), 1e-300)[:, None]
+    # In spatial order, the samples of neighbouring faces lie near in memory.
+    order = spatial_order(samples)
+    samples, normals, itself = samples[order], normals[order], _on_itself(mesh)
+    on_itself = Projection(
+        face=itself.face[order], bary=itself.bary[order], distance2=itself.distance2[order]
+    )
     await_simplify_kernels()  # on a fresh install, while a second process compiles them
     state = MeshState(
-        mesh.vertices, mesh.faces, samples, _on_itself(mesh),
+        mesh.vertices, mesh.faces, samples, on_itself,
         kappa=0.0, c_rep=0.0, max_fold_degrees=MAX_FOLD_DEGREES_SIMPLIFY, spare=0.0,
     )  # fmt: skip
     counts["simplify_collapses"] = state.collapse_within(SAMPLE_MARGIN * tolerance, normals)
@@ -321,10 +327,10 @@ def _on_itself(mesh: Mesh) -> Projection:
 
 def _vertex_normals(faces: np.ndarray, n_vertices: int, area_vectors: np.ndarray) -> np.ndarray:
     """(V, 3) the sum of the area vectors (F, 3) of each vertex's faces (not normalised)."""
-    normals = np.zeros((n_vertices, 3))
-    for corner in range(3):
-        np.add.at(normals, faces[:, corner], area_vectors)
-    return normals
+    corners = faces.reshape(-1)
+    return np.column_stack(
+        [np.bincount(corners, np.repeat(area_vectors[:, k], 3), n_vertices) for k in range(3)]
+    )
 
 
 def _split_strays(check: _Check, strays: np.ndarray) -> tuple[Mesh, int, np.ndarray]:

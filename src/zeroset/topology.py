@@ -118,7 +118,8 @@ def is_edge_manifold(faces: np.ndarray) -> bool:
 def is_consistently_oriented(faces: np.ndarray) -> bool:
     """Whether no directed edge occurs twice (neighbouring faces run shared edges oppositely)."""
     half = half_edges(faces)
-    return np.unique(half, axis=0).shape[0] == half.shape[0]
+    key = half[:, 0] * np.int64(faces.max(initial=-1) + 1) + half[:, 1]  # see edge_ids
+    return np.unique(key).shape[0] == half.shape[0]
 
 
 def boundary_edges(faces: np.ndarray) -> np.ndarray:

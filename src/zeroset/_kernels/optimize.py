@@ -170,7 +170,8 @@ def _unlink(head, nxt, prv, count, f, p):
 
 @jit
 def edges_of(state):
-    """Return the (E, 2) undirected edges (a < b) of the live faces, each once."""
+    """Return the (3F, 2) undirected edges (a < b) of the live faces, one per face side
+    (an edge between two faces twice)."""
     F, alive_f = state.F, state.alive_f
     n = 0
     out = np.zeros((3 * F.shape[0], 2), dtype=np.int64)

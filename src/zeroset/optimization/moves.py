@@ -48,6 +48,14 @@ def _by_slab(owner: np.ndarray, edges: np.ndarray) -> tuple[list[np.ndarray], np
     return inside, edges[~same]
 
 
+def _unique_edges(state) -> np.ndarray:
+    """The (E, 2) edges of the state's live faces, each once, in lexicographic order (one
+    integer key per edge: a 1-D unique is many times faster than ``unique(axis=0)``)."""
+    edges = _kernels.edges_of(state)
+    key = edges[:, 0] * np.int64(state.V.shape[0]) + edges[:, 1]
+    return edges[np.unique(key, return_index=True)[1]]
+
+
 def _by_length(state, edges: np.ndarray) -> np.ndarray:
     """`edges` (E, 2) int64 of a state, shortest first."""
     length = np.linalg.norm(state.V[edges[:, 0]] - state.V[edges[:, 1]], axis=1)
@@ -166,7 +174,7 @@ class MeshState:
         """
         state = self._state
         if edges is None:
-            edges = np.unique(_kernels.edges_of(state), axis=0)
+            edges = _unique_edges(state)
         edges = np.ascontiguousarray(edges[rng.permutation(edges.shape[0])], dtype=np.int64)
         seeds = rng.integers(0, 2**31 - 1, size=len(ROUND_CUTS) * LABELS + 1)
         # Each label fills its own share of the free slots, the last round the last share.
@@ -219,7 +227,7 @@ class MeshState:
         """
         state = self._state
         normals = np.ascontiguousarray(normals, dtype=np.float64)
-        edges = _by_length(state, np.unique(_kernels.edges_of(state), axis=0))
+        edges = _by_length(state, _unique_edges(state))
         squared = float(tolerance) ** 2
         lanes = min(LABELS, numba.get_num_threads())
         scratches = self._scratches(lanes)
