@@ -157,18 +157,6 @@ def _link(head, nxt, prv, count, f, p):
 
 
 @jit
-def _unlink(head, nxt, prv, count, f, p):
-    # Take point p out of face f's list.
-    if prv[p] >= 0:
-        nxt[prv[p]] = nxt[p]
-    else:
-        head[f] = nxt[p]
-    if nxt[p] >= 0:
-        prv[nxt[p]] = prv[p]
-    count[f] -= 1
-
-
-@jit
 def edges_of(state):
     """Return the (3F, 2) undirected edges (a < b) of the live faces, one per face side
     (an edge between two faces twice)."""
@@ -535,17 +523,28 @@ def _fit_vertex(
 
 
 @jit
-def _reassign(state, pts, global_face, face, bary, d2):
-    # Move each point to its new face with its new projection.
+def _reassign(state, region, n_region, pts, global_face, face, bary, d2):
+    # Move each point to its new face with its new projection: `pts` are every point of
+    # the faces `region[:n_region]` (`_gather_points`), whose lists are rebuilt. The lists
+    # are linked here rather than by `_link` calls: each call would count references to
+    # its four arrays, which costs more than the linking.
     pf, pb, pd, head, nxt, prv = state.pf, state.pb, state.pd, state.head, state.nxt, state.prv
     count = state.count
+    for r in range(n_region):
+        head[region[r]] = -1
+        count[region[r]] = 0
     for q in range(pts.shape[0]):
         p = pts[q]
-        _unlink(head, nxt, prv, count, pf[p], p)
-        pf[p] = global_face[face[q]]
+        f = global_face[face[q]]
+        pf[p] = f
         pb[p, 0], pb[p, 1], pb[p, 2] = bary[q, 0], bary[q, 1], bary[q, 2]
         pd[p] = d2[q]
-        _link(head, nxt, prv, count, pf[p], p)
+        prv[p] = -1
+        nxt[p] = head[f]
+        if head[f] >= 0:
+            prv[head[f]] = p
+        head[f] = p
+        count[f] += 1
 
 
 @jit
@@ -715,7 +714,7 @@ def try_collapse(state, scratch, i, j, kappa, c_rep, min_cos, force, result):
     if not _fold_ok(state, scratch, region, n_region, scratch.new_faces, n_new, h, min_cos):
         return BAD_DIHEDRAL
     _apply_collapse(state, i, j, h, scratch.edge, n_edge)
-    _reassign(state, pts, scratch.global_face, face, bary, d2)
+    _reassign(state, region, n_region, pts, scratch.global_face, face, bary, d2)
     return ACCEPTED
 
 
@@ -792,7 +791,7 @@ def try_collapse_within(state, scratch, normals, i, j, tolerance2, min_cos):
     if not _facing(state, scratch, normals, pts, face, n_new, h, min_cos):
         return BAD_DIHEDRAL
     _apply_collapse(state, i, j, h, scratch.edge, n_edge)
-    _reassign(state, pts, scratch.global_face, face, bary, d2)
+    _reassign(state, region, n_region, pts, scratch.global_face, face, bary, d2)
     return ACCEPTED
 
 
@@ -874,7 +873,7 @@ def try_split(state, scratch, i, j, kappa, c_rep, min_cos, force, result):
         _add_face(vf, deg, y, g)
         _add_face(vf, deg, k, g)
     sizes[1] += n_edge
-    _reassign(state, pts, global_face, face, bary, d2)
+    _reassign(state, edge, n_edge, pts, global_face, face, bary, d2)
     return ACCEPTED
 
 
@@ -969,7 +968,7 @@ def try_swap(state, scratch, i, j, kappa, c_rep, min_cos, force, result):
     if not _fold_ok(state, scratch, edge, two, scratch.new_faces, two, h, min_cos):
         return BAD_DIHEDRAL
     _apply_swap(state, i, j, f1, f2, k, m)
-    _reassign(state, pts, scratch.global_face, face, bary, d2)
+    _reassign(state, edge, two, pts, scratch.global_face, face, bary, d2)
     return ACCEPTED
 
 
@@ -992,7 +991,7 @@ def try_swap_within(state, scratch, normals, i, j, tolerance2, min_cos):
     if not _facing(state, scratch, normals, pts, face, two, h, min_cos):
         return BAD_DIHEDRAL
     _apply_swap(state, i, j, f1, f2, k, m)
-    _reassign(state, pts, global_face, face, bary, d2)
+    _reassign(state, edge, two, pts, global_face, face, bary, d2)
     return ACCEPTED
 
 
