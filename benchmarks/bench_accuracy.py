@@ -55,7 +55,7 @@ def pipe_rows(sizes) -> list[dict]:
     for n in sizes:
         points = sample_cylinder(n, radius=0.25, length=1.0, noise=0.002, rng=0).points
         for surface in SURFACES:
-            result = zeroset.reconstruct(points, surface=surface)
+            result = zeroset.reconstruct(points, surface=surface, tolerance=0)
             bias, error = signed_errors(
                 result.mesh,
                 lambda x: np.hypot(x[:, 0], x[:, 1]) - 0.25,
@@ -84,7 +84,7 @@ def sphere_rows(radii) -> list[dict]:
     for radius in radii:
         points = sample_sphere(20_000, radius=radius, noise=0.001, rng=0).points
         for surface in SURFACES:
-            result = zeroset.reconstruct(points, surface=surface)
+            result = zeroset.reconstruct(points, surface=surface, tolerance=0)
             bias, error = signed_errors(
                 result.mesh, lambda x, r=radius: np.linalg.norm(x, axis=1) - r
             )

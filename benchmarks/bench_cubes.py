@@ -87,7 +87,7 @@ def _chamfer(mesh, points, sample) -> float:
 def _measure(name, points, viewpoints, sample, method: str) -> dict:
     """Reconstruct one cloud with one contouring and measure the mesh."""
     begin = time.perf_counter()
-    result = zeroset.reconstruct(points, viewpoints=viewpoints, contour=method)
+    result = zeroset.reconstruct(points, viewpoints=viewpoints, contour=method, tolerance=0)
     seconds = time.perf_counter() - begin
     mesh = result.mesh
     angles = evaluate.smallest_angles(mesh)
@@ -152,11 +152,11 @@ def run_phase1(data: Path) -> tuple[list[dict], dict]:
 
 def run_phase2(seeds: int) -> list[dict]:
     warm = sample_cylinder(WARMUP_POINTS, **CYLINDER).points
-    zeroset.optimize(zeroset.reconstruct(warm).mesh, warm, rng=0)  # compile every kernel first
+    zeroset.optimize(zeroset.reconstruct(warm, tolerance=0).mesh, warm, rng=0)  # compile first
     sample = sample_cylinder(PHASE2_POINTS, **CYLINDER)
     starts = {
         m: zeroset.reconstruct(
-            sample.points, cube_size=PHASE2_CUBE, contour=m, refine_levels=0
+            sample.points, cube_size=PHASE2_CUBE, contour=m, refine_levels=0, tolerance=0
         ).mesh
         for m in METHODS
     }

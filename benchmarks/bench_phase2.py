@@ -89,10 +89,12 @@ def run_child(case: str, repeat: int, scale: float, profile: bool) -> dict:
 
     points, cube_size, _ = CASES[case]
     warm = sample_cylinder(WARMUP_POINTS, **CYLINDER).points
-    zeroset.optimize(zeroset.reconstruct(warm).mesh, warm, rng=0)  # compile every kernel first
+    zeroset.optimize(zeroset.reconstruct(warm, tolerance=0).mesh, warm, rng=0)  # compile first
     rss_warm = _peak_rss_mib()
     sample = sample_cylinder(round(points * scale), **CYLINDER)
-    start = zeroset.reconstruct(sample.points, cube_size=cube_size, refine_levels=0).mesh
+    start = zeroset.reconstruct(
+        sample.points, cube_size=cube_size, refine_levels=0, tolerance=0
+    ).mesh
     runs = []
     for _ in range(repeat):
         gc.collect()
@@ -174,8 +176,8 @@ def render(reports: list[dict], machine: dict, command: str, scale: float) -> st
         "phase-1 mesh of a noisy open pipe, "
         f"`zeroset.synthetic.sample_cylinder(n, radius={CYLINDER['radius']}, "
         f"length={CYLINDER['length']}, noise={CYLINDER['noise']}, rng={CYLINDER['rng']})`. "
-        "Phase 1 is `zeroset.reconstruct(points, cube_size=..., refine_levels=0)` on the same "
-        "points, with the cube size chosen for the wanted face count.",
+        "Phase 1 is `zeroset.reconstruct(points, cube_size=..., refine_levels=0, tolerance=0)` "
+        "(its dense mesh) on the same points, with the cube size chosen for the wanted face count.",
         "",
         "- Every case runs in a fresh child process, which first optimises the phase-1 mesh of a "
         f"{WARMUP_POINTS:,}-point pipe so that Numba JIT compilation is excluded.",

@@ -70,7 +70,7 @@ def run(folder: Path) -> list[dict]:
     try:
         for wanted, (n, cube) in CASES.items():
             sample = sample_cylinder(n, **CYLINDER)
-            result = zeroset.reconstruct(sample.points, cube_size=cube)
+            result = zeroset.reconstruct(sample.points, cube_size=cube, tolerance=0)
             picture, page = folder / f"{wanted}.png", folder / f"{wanted}.html"
             render_s, report_s, load_s = [], [], []
             for _ in range(REPEAT):
