@@ -95,6 +95,18 @@ def test_the_check_after_each_split_round_is_the_whole_check(seed):
     assert np.count_nonzero(errors > tolerance) <= 0.001 * simple.n_faces
 
 
+def test_a_vertex_of_no_face_is_no_sample():
+    # A vertex far from every face, used by none: it is left out, not measured against.
+    dense = height_field(0)
+    lone = Mesh(vertices=np.vstack([dense.vertices, [[5.0, 5.0, 5.0]]]), faces=dense.faces)
+    tolerance = 3e-3
+    simple, counts = simplify_mesh(lone, tolerance)
+    assert counts["simplify_strays"] == 0
+    assert np.linalg.norm(simple.vertices - 5.0, axis=1).min() > 1.0
+    assert two_sided_errors(simple, dense).max() <= tolerance
+    assert simple.n_faces < dense.n_faces / 3
+
+
 def test_the_error_is_unbiased_on_a_curved_surface():
     # A cylinder of radius 1 as a fine open tube: chords of a half-edge collapse lie inside
     # it; after `unbias` the mean signed distance to it is near zero, while the chords of

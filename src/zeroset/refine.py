@@ -81,7 +81,8 @@ def split_edges(mesh: Mesh, marked: np.ndarray) -> Mesh:
     Returns
     -------
     Mesh
-        The old vertices first, then one per marked edge in edge order.
+        The old vertices first, then one per marked edge in edge order; the faces with no
+        marked edge first, in their order, then the pieces of the others.
     """
     faces = mesh.faces
     edges, corner_edge, _ = undirected_edges(faces)

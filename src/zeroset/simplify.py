@@ -32,7 +32,7 @@ from ._kernels.evaluate import build_hierarchy
 from .errors import InputError
 from .evaluate import closest_on_arrays
 from .neighbours import spatial_order
-from .optimization import MeshState, Projection, project
+from .optimization import MeshState, Projection
 from .refine import split_edges
 from .surface import Surface
 from .thresholds import (
@@ -95,8 +95,9 @@ def simplify_mesh(mesh: Mesh, tolerance: float) -> tuple[Mesh, dict]:
     Returns
     -------
     mesh : Mesh
-        The same boundary loops, edge-manifold and oriented like `mesh`; `mesh` itself
-        where no fewer triangles stay within the tolerance.
+        The same boundary loops, edge-manifold and oriented like `mesh`, without the
+        vertices of no face; `mesh` itself (less those vertices) where no fewer triangles
+        stay within the tolerance.
     counts : dict
         ``simplify_collapses``; ``simplify_splits``, edges split where a triangle strayed;
         ``simplify_strays``, triangles still farther than the tolerance after the last
@@ -116,6 +117,9 @@ def simplify_mesh(mesh: Mesh, tolerance: float) -> tuple[Mesh, dict]:
         return mesh, counts
     if not (is_edge_manifold(mesh.faces) and is_consistently_oriented(mesh.faces)):
         raise InputError("mesh is not edge-manifold and consistently oriented")
+    used = np.unique(mesh.faces)
+    if used.size < mesh.n_vertices:  # a vertex of no face is no sample of the surface
+        mesh = Mesh(vertices=mesh.vertices[used], faces=np.searchsorted(used, mesh.faces))
     samples = np.concatenate([mesh.vertices, mesh.vertices[mesh.faces].mean(axis=1)])
     area_vectors = face_area_vectors(mesh.vertices, mesh.faces)
     normals = np.concatenate(
@@ -303,25 +307,19 @@ def unbias(mesh: Mesh, samples: np.ndarray) -> Mesh:
 
 
 def _on_itself(mesh: Mesh) -> Projection:
-    """The projection of the vertices and then the face centroids of `mesh` onto it: each
-    vertex at a corner of one of its faces (a vertex of no face at its closest point),
-    each centroid at the middle of its face."""
+    """The projection of the vertices (each of some face) and then the face centroids of
+    `mesh` onto it: each vertex at a corner of one of its faces, each centroid at the
+    middle of its face."""
     n_v, n_f = mesh.n_vertices, mesh.n_faces
-    face_of_vertex = np.full(n_v, -1, dtype=np.int64)
+    face_of_vertex = np.empty(n_v, dtype=np.int64)
     face_of_vertex[mesh.faces.ravel()] = np.repeat(np.arange(n_f), 3)
+    corner = np.argmax(mesh.faces[face_of_vertex] == np.arange(n_v)[:, None], axis=1)
     bary = np.zeros((n_v, 3))
-    used = np.flatnonzero(face_of_vertex >= 0)
-    corner = np.argmax(mesh.faces[face_of_vertex[used]] == used[:, None], axis=1)
-    bary[used, corner] = 1.0
-    distance2 = np.zeros(n_v + n_f)
-    alone = np.flatnonzero(face_of_vertex < 0)
-    if alone.size:
-        lost = project(mesh.vertices[alone], mesh.vertices, mesh.faces)
-        face_of_vertex[alone], bary[alone], distance2[alone] = lost
+    bary[np.arange(n_v), corner] = 1.0
     return Projection(
         face=np.concatenate([face_of_vertex, np.arange(n_f)]),
         bary=np.concatenate([bary, np.full((n_f, 3), 1.0 / 3.0)]),
-        distance2=distance2,
+        distance2=np.zeros(n_v + n_f),
     )
 
 
