@@ -22,9 +22,10 @@ _SESSION = ExitStack()
 
 
 def pytest_sessionstart(session):
-    # On a fresh Numba cache, the later stages' and phase 2's kernels compile in a second
-    # process while the first tests compile the first stages' (as a first run does).
-    _SESSION.enter_context(late_kernels_ahead(optimize=True))
+    # On a fresh Numba cache, the simplification's, the later stages' and phase 2's kernels
+    # compile in a second process while the first tests compile the first stages' (as a
+    # first run does).
+    _SESSION.enter_context(late_kernels_ahead(optimize=True, simplify=True))
 
 
 def pytest_sessionfinish(session, exitstatus):

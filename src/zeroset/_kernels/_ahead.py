@@ -176,11 +176,12 @@ def late_kernels_ahead(
             stderr=subprocess.DEVNULL,
             env={**os.environ, "NUMBA_NUM_THREADS": "1"},
         )
-    _process = process
+    outer = _process  # a block within another's: the outer process is still at work
+    _process = outer if process is None else process
     try:
         yield process
     finally:
-        _process = None
+        _process = outer
         if process is not None:
             if process.poll() is None:
                 process.kill()
