@@ -88,8 +88,7 @@ def build_state(vertices, faces, points, face_of_point, bary, distance2, width, 
     prv = np.full(n_p, -1, dtype=np.int64)
     count = np.zeros(fc, dtype=np.int64)
     pf = face_of_point.copy()
-    for p in range(n_p):
-        _link(head, nxt, prv, count, pf[p], p)
+    _link(head, nxt, prv, count, pf, np.arange(n_p))
     sizes = np.array([n_v, n_f, n_alive, vc, fc], dtype=np.int64)
     return State(
         V, F, alive_v, alive_f, vf, deg, points, pf, bary.copy(), distance2.copy(),
@@ -146,14 +145,17 @@ def _copy_rows(dst, src, n):
 
 
 @jit
-def _link(head, nxt, prv, count, f, p):
-    # Put point p at the front of face f's list.
-    prv[p] = -1
-    nxt[p] = head[f]
-    if head[f] >= 0:
-        prv[head[f]] = p
-    head[f] = p
-    count[f] += 1
+def _link(head, nxt, prv, count, pf, pts):
+    # Put each point p of pts at the front of the list of its face pf[p], in order.
+    for q in range(pts.shape[0]):
+        p = pts[q]
+        f = pf[p]
+        prv[p] = -1
+        nxt[p] = head[f]
+        if head[f] >= 0:
+            prv[head[f]] = p
+        head[f] = p
+        count[f] += 1
 
 
 @jit
@@ -525,9 +527,8 @@ def _fit_vertex(
 @jit
 def _reassign(state, region, n_region, pts, global_face, face, bary, d2):
     # Move each point to its new face with its new projection: `pts` are every point of
-    # the faces `region[:n_region]` (`_gather_points`), whose lists are rebuilt. The lists
-    # are linked here rather than by `_link` calls: each call would count references to
-    # its four arrays, which costs more than the linking.
+    # the faces `region[:n_region]` (`_gather_points`), whose lists are emptied first and
+    # filled again.
     pf, pb, pd, head, nxt, prv = state.pf, state.pb, state.pd, state.head, state.nxt, state.prv
     count = state.count
     for r in range(n_region):
@@ -535,16 +536,10 @@ def _reassign(state, region, n_region, pts, global_face, face, bary, d2):
         count[region[r]] = 0
     for q in range(pts.shape[0]):
         p = pts[q]
-        f = global_face[face[q]]
-        pf[p] = f
+        pf[p] = global_face[face[q]]
         pb[p, 0], pb[p, 1], pb[p, 2] = bary[q, 0], bary[q, 1], bary[q, 2]
         pd[p] = d2[q]
-        prv[p] = -1
-        nxt[p] = head[f]
-        if head[f] >= 0:
-            prv[head[f]] = p
-        head[f] = p
-        count[f] += 1
+    _link(head, nxt, prv, count, pf, pts)
 
 
 @jit
