@@ -56,12 +56,12 @@ def inspected(tmp_path_factory):
     dent = 0.015 * np.exp(-0.5 * (((points[:, 2] - 0.5) / 0.06) ** 2 + (arc / 0.06) ** 2))
     points[:, :2] *= (1.0 - dent / 0.25)[:, None]
     result = reconstruct(points, progress=False)
-    inspection = inspect_pipe(result.mesh, points)
+    inspection = inspect_pipe(result.dense_mesh, points)  # as the CLI inspects
     folder = tmp_path_factory.mktemp("inspected")
     report = write_html_report(
         folder / "report.html", result, points=points, inspection=inspection, pictures=PICTURES
     )
-    mesh = read_mesh(write_mesh(folder / "pipe.ply", result.mesh))
+    mesh = read_mesh(write_mesh(folder / "pipe.ply", result.dense_mesh))
     page = write_inspection_report(
         folder / "inspection.html",
         mesh,
@@ -378,3 +378,26 @@ def test_viewer_tables_the_stations_defects_joints_and_centreline_check(inspecte
     assert len(rows) == 2
     assert "the data extend" in rows[0] and "differ by more than 2 % or one diameter" in rows[0]
     assert "6.4" in rows[1] and "> 6 % D, assess" in rows[1]
+
+
+@pytest.mark.slow
+def test_the_cli_reports_an_inspection_of_the_dense_mesh(tmp_path):
+    # The CLI inspects the dense mesh and shows it, coloured by deviation, in the report
+    # of a run whose final mesh is the simplified one (it stopped with an InputError).
+    from zeroset.cli import main
+    from zeroset.io import write_points
+
+    sample = sample_cylinder(8000, radius=0.25, length=1.0, noise=0.002, rng=6)
+    cloud = write_points(tmp_path / "pipe.ply", sample.points)
+    mesh_path, report = tmp_path / "m.ply", tmp_path / "r.html"
+    argv = ["reconstruct", str(cloud), "-o", str(mesh_path), "--quiet"]
+    assert main([*argv, "--inspect", str(tmp_path / "pipe"), "--report", str(report)]) == 0
+    layers = _embedded(report.read_text(encoding="utf-8"), "zeroset-layers")
+    vertices = _unpack(layers["phase 1"]["vertices"]).reshape(-1, 3)
+    deviation = _unpack(layers["phase 1"]["deviation"])
+    written = read_mesh(mesh_path)
+    assert deviation.shape == (vertices.shape[0],)
+    assert vertices.shape[0] > 3 * written.n_vertices  # the dense mesh, not the simplified
+    radius = np.hypot(vertices[:, 0], vertices[:, 1])
+    middle = np.abs(vertices[:, 2] - 0.5) < 0.4
+    assert np.abs(radius[middle] - 0.25).mean() < 0.001

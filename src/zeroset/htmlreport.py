@@ -57,7 +57,7 @@ def write_html_report(
     are the parameters chosen and why, the counts, boundary loops, stage timings, the
     distances from the points to the mesh and phase 2's energies, moves and history.
 
-    With an `inspection` of the final mesh the viewer colours that mesh by its deviation
+    With an `inspection` of the inspected mesh the viewer colours that mesh by its deviation
     from the nominal pipe (blue inward, red outward, at the 99th percentile of |deviation|
     the deepest; on at first), and the page shows the inspection's numbers
     (:func:`zeroset.inspect.inspection_summary`, also under ``"inspection"`` in the
@@ -75,7 +75,9 @@ def write_html_report(
     report : dict, optional
         The numbers, when :func:`zeroset.report.reconstruction_report` has already made them.
     inspection : zeroset.inspect.Inspection, optional
-        The inspection of ``result.mesh`` (phase 2's mesh when phase 2 ran, else phase 1's).
+        The inspection of phase 2's mesh when phase 2 ran, else of phase 1's dense mesh
+        (``result.dense_mesh``, as the CLI inspects it), which the page then shows as
+        phase 1's.
     pictures : dict of str to bytes, optional
         PNG files by caption, shown in that order (e.g. from `zeroset.inspect`'s pictures).
     rng : numpy.random.Generator or int or None
@@ -100,6 +102,8 @@ def write_html_report(
     meshes = {"phase 1": result.initial_mesh}
     if result.optimization is not None:
         meshes["phase 2"] = result.mesh
+    elif inspection is not None:  # the inspection measures the dense mesh
+        meshes["phase 1"] = result.dense_mesh
     final = list(meshes)[-1]
     deviation = _vertex_deviation(inspection, meshes[final])
     if report is None:
@@ -194,7 +198,8 @@ def _vertex_deviation(inspection: Inspection | None, mesh: Mesh) -> np.ndarray |
     if deviation.shape[0] != mesh.n_vertices:
         raise InputError(
             f"the inspection has deviations of {deviation.shape[0]} vertices; the mesh shown "
-            f"has {mesh.n_vertices} (inspect the final mesh: phase 2's when phase 2 ran)"
+            f"has {mesh.n_vertices} (inspect phase 2's mesh when phase 2 ran, else the "
+            "dense mesh)"
         )
     return deviation
 
