@@ -11,6 +11,7 @@ from .types import Mesh
 __all__ = [
     "corner_fans",
     "edge_ids",
+    "edge_keys",
     "half_edges",
     "boundary_edges",
     "boundary_loops",
@@ -50,12 +51,18 @@ def undirected_edges(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndar
     return edges, edge_of_half.reshape(faces.shape), counts
 
 
+def edge_keys(pairs: np.ndarray, n_vertices: int) -> np.ndarray:
+    """(E,) int64 one key per vertex pair (E, 2), ordered as the pairs are
+    lexicographically: a 1-D unique of them is many times faster than ``unique(axis=0)``."""
+    return pairs[:, 0] * np.int64(n_vertices) + pairs[:, 1]
+
+
 def edge_ids(faces: np.ndarray, n_vertices: int) -> tuple[np.ndarray, np.ndarray]:
     """Return the undirected edge id of each half-edge (3F,) and each edge's face count (E,)."""
     half = np.sort(half_edges(faces), axis=1)
-    # One integer key per edge: a 1-D unique is many times faster than unique(axis=0).
-    key = half[:, 0] * np.int64(n_vertices) + half[:, 1]
-    _, edge_of_half, counts = np.unique(key, return_inverse=True, return_counts=True)
+    _, edge_of_half, counts = np.unique(
+        edge_keys(half, n_vertices), return_inverse=True, return_counts=True
+    )
     return edge_of_half.reshape(-1), counts
 
 
@@ -118,8 +125,7 @@ def is_edge_manifold(faces: np.ndarray) -> bool:
 def is_consistently_oriented(faces: np.ndarray) -> bool:
     """Whether no directed edge occurs twice (neighbouring faces run shared edges oppositely)."""
     half = half_edges(faces)
-    key = half[:, 0] * np.int64(faces.max(initial=-1) + 1) + half[:, 1]  # see edge_ids
-    return np.unique(key).shape[0] == half.shape[0]
+    return np.unique(edge_keys(half, faces.max(initial=-1) + 1)).shape[0] == half.shape[0]
 
 
 def boundary_edges(faces: np.ndarray) -> np.ndarray:
