@@ -234,6 +234,26 @@ def test_a_guessed_face_changes_no_closest_point(in_order):
             np.testing.assert_array_equal(got, expected)
 
 
+@pytest.mark.parametrize("in_order", [False, True])
+def test_a_bound_finds_the_closest_face_only_where_it_is_nearer(in_order):
+    # Against the unbounded search: where the closest face lies nearer than the bound it
+    # is found as before; elsewhere the point gets face -1 and the squared bound.
+    rng = np.random.default_rng(9)
+    points, vertices, faces, _ = _triangle_soup_inputs(rng)
+    if in_order:
+        points = np.ascontiguousarray(points[spatial_order(points)])
+    face, bary, distance2 = evaluate_kernels.closest_points_on_mesh(points, vertices, faces)
+    within = np.sqrt(distance2) * rng.choice([0.5, 2.0], size=distance2.size)
+    got = evaluate_kernels.closest_points_on_mesh(
+        points, vertices, faces, in_order=in_order, within=within
+    )
+    nearer = within**2 > distance2
+    assert 0 < np.count_nonzero(nearer) < nearer.size
+    np.testing.assert_array_equal(got[0], np.where(nearer, face, -1))
+    np.testing.assert_array_equal(got[1][nearer], bary[nearer])
+    np.testing.assert_array_equal(got[2], np.where(nearer, distance2, within**2))
+
+
 @pytest.mark.parametrize(
     "b",
     [[0.0, 0.0, 0.0], [2.0, 0.0, 0.0], [1.5, 0.0, 0.0], [4.0, 0.0, 0.0]],

@@ -2,6 +2,7 @@ import numpy as np
 import pytest
 
 from zeroset import topology
+from zeroset._unique import distinct
 from zeroset.repair import fill_small_holes, remove_small_components, split_nonmanifold_vertices
 from zeroset.types import Mesh
 
@@ -94,3 +95,10 @@ def test_boundary_edges_run_as_in_their_faces(tetra_mesh):
     open_faces = tetra_mesh.faces[:3]  # the tetrahedron without its last face
     edges = topology.boundary_edges(open_faces)
     assert sorted(map(tuple, edges.tolist())) == sorted([(2, 1), (1, 3), (3, 2)])
+
+
+@pytest.mark.parametrize("shape", [(0,), (1,), (40,), (7, 3)])
+def test_distinct_values_are_the_sorted_set(shape):
+    values = np.random.default_rng(3).integers(-5, 5, size=shape)
+    expected = sorted(set(values.reshape(-1).tolist()))
+    assert distinct(values).tolist() == expected

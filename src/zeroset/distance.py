@@ -6,6 +6,7 @@ import numpy as np
 
 from . import _lattice
 from ._mc_table import CORNER_OFFSETS
+from ._unique import distinct
 from ._validate import as_points, as_vector3, positive, positive_per_row
 from .neighbours import build_tree, query_workers
 from .thresholds import CANDIDATES, ZERO_NUDGE
@@ -141,7 +142,7 @@ def _band_vertices(centroids: np.ndarray, origin: np.ndarray, cube_size: float, 
     for r in np.unique(reach):
         steps = np.arange(-r, r + 1)
         dilation = np.stack(np.meshgrid(steps, steps, steps, indexing="ij"), -1).reshape(-1, 3)
-        cells = np.unique(cell_keys[reach == r])
+        cells = distinct(cell_keys[reach == r])
         bands.append((cells[:, None] + _lattice.offset_keys(dilation)[None, :]).reshape(-1))
-    band = np.unique(np.concatenate(bands))
-    return np.unique((band[:, None] + _lattice.offset_keys(CORNER_OFFSETS)[None, :]).reshape(-1))
+    band = distinct(np.concatenate(bands))
+    return distinct((band[:, None] + _lattice.offset_keys(CORNER_OFFSETS)[None, :]).reshape(-1))

@@ -14,6 +14,7 @@ from scipy.sparse.csgraph import connected_components
 
 from ._kernels import evaluate as _kernels
 from ._kernels import triangles as _triangles
+from ._unique import distinct
 from ._validate import as_faces, as_points, positive, require_rng
 from .errors import InputError
 from .topology import corner_fans, edge_ids, face_components
@@ -612,13 +613,17 @@ def _reference_options(n_samples, taus, tau_unit) -> tuple[int, np.ndarray, str]
     return n_samples, np.array(values), tau_unit
 
 
-def closest_on_arrays(points, vertices, faces, *, in_order=False, hierarchy=None):
+def closest_on_arrays(points, vertices, faces, *, in_order=False, hierarchy=None, within=None):
     """closest_points_on_mesh on validated arrays (N, 3), (M, 3), (F, 3); no checks.
-    `in_order` and `hierarchy` as for `zeroset._kernels.closest_points_on_mesh`."""
+    `in_order`, `hierarchy` and `within` (N,) as for
+    `zeroset._kernels.closest_points_on_mesh`: a point with no face nearer than its bound
+    gets face -1, a closest point of NaN and the bound as its distance."""
     face, bary, distance2 = _kernels.closest_points_on_mesh(
-        points, vertices, faces, in_order=in_order, hierarchy=hierarchy
+        points, vertices, faces, in_order=in_order, hierarchy=hierarchy, within=within
     )
     closest = np.einsum("ni,nij->nj", bary, vertices[faces[face]])
+    if within is not None:
+        closest[face < 0] = np.nan
     return closest, face, np.sqrt(distance2)
 
 
@@ -645,7 +650,7 @@ def _sample(vertices, faces, n, rng, name):
 
 def _compare_to_reference(m_vertices, m_faces, r_vertices, r_faces, n, taus, tau_unit, rng):
     """compare_to_reference on validated arrays and options."""
-    used = r_vertices[np.unique(r_faces)]
+    used = r_vertices[distinct(r_faces)]
     diagonal = float(np.linalg.norm(used.max(axis=0) - used.min(axis=0)))
     taus = taus * diagonal if tau_unit == "diagonal" else taus
     m_points, m_normals = _sample(m_vertices, m_faces, n, rng, "mesh")
@@ -806,7 +811,7 @@ def _count_boundary_loops(fan: np.ndarray, n_fans: int, border: np.ndarray) -> i
     rows, cols = fan[tail], fan[head]
     graph = sparse.coo_matrix((np.ones(rows.size), (rows, cols)), shape=(n_fans, n_fans))
     _, label = connected_components(graph, directed=False)
-    return int(np.unique(label[rows]).size)
+    return int(distinct(label[rows]).size)
 
 
 def _table(rows: list[list[str]], indent: str = "  ") -> list[str]:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ._unique import distinct
 from .thresholds import FAN_FRACTIONS
 from .topology import boundary_loops, corner_fans, edge_ids, face_components, vertex_normals
 from .types import Mesh
@@ -58,7 +59,7 @@ def split_nonmanifold_vertices(mesh: Mesh) -> tuple[Mesh, int]:
     corner_vertex = faces.reshape(-1)
     vertices = mesh.vertices[corner_vertex[first[order]]]
     new_faces = remap[fan].reshape(-1, 3)
-    added = n_fans - np.unique(corner_vertex).size
+    added = n_fans - distinct(corner_vertex).size
     return Mesh(vertices=vertices, faces=new_faces), int(added)
 
 

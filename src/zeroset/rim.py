@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ._unique import distinct
 from .neighbours import ball_pairs, build_tree, query_workers
 from .repair import fan_samples
 from .thresholds import (
@@ -400,7 +401,7 @@ def trim_to_data(
     tree = build_tree(points)
     gap, nearest = tree.query(mesh.vertices, workers=query_workers())
     tested = gap > FAR * radii[nearest]
-    rim = np.unique(boundary_edges(mesh.faces))
+    rim = distinct(boundary_edges(mesh.faces))
     if rim.size:
         distance, _ = build_tree(mesh.vertices[rim]).query(
             mesh.vertices,
@@ -424,7 +425,7 @@ def trim_to_data(
     balls, hollow = None, np.zeros(0, dtype=np.int64)
     if centres.shape[0]:
         balls = build_tree(centres)
-        hollow = np.unique(ball_pairs(build_tree(mesh.vertices), centres, depths)[1])
+        hollow = distinct(ball_pairs(build_tree(mesh.vertices), centres, depths)[1])
         tested[hollow] = True
     near = np.flatnonzero(tested)
 

@@ -28,7 +28,8 @@ from typing import NamedTuple
 import numpy as np
 
 from ._kernels._ahead import await_simplify_kernels
-from ._kernels.evaluate import build_hierarchy
+from ._kernels.evaluate import build_hierarchy, closest_points_on_mesh
+from ._unique import distinct
 from .errors import InputError
 from .evaluate import closest_on_arrays
 from .neighbours import spatial_order
@@ -117,7 +118,7 @@ def simplify_mesh(mesh: Mesh, tolerance: float) -> tuple[Mesh, dict]:
         return mesh, counts
     if not (is_edge_manifold(mesh.faces) and is_consistently_oriented(mesh.faces)):
         raise InputError("mesh is not edge-manifold and consistently oriented")
-    used = np.unique(mesh.faces)
+    used = distinct(mesh.faces)
     if used.size < mesh.n_vertices:  # a vertex of no face is no sample of the surface
         mesh = Mesh(vertices=mesh.vertices[used], faces=np.searchsorted(used, mesh.faces))
     samples = np.concatenate([mesh.vertices, mesh.vertices[mesh.faces].mean(axis=1)])
@@ -218,11 +219,11 @@ class _Check(NamedTuple):
         _, face[lost], back[lost] = closest_on_arrays(
             self.points[lost], simple.vertices, simple.faces, in_order=True
         )
-        _, near_face, near = closest_on_arrays(
-            self.points, simple.vertices, simple.faces[new], in_order=True
+        near_face, _, near2 = closest_points_on_mesh(
+            self.points, simple.vertices, simple.faces[new], in_order=True, within=back
         )
-        closer = near < back
-        face[closer], back[closer] = new[near_face[closer]], near[closer]
+        closer = near_face >= 0
+        face[closer], back[closer] = new[near_face[closer]], np.sqrt(near2[closer])
         away = np.empty(simple.n_faces)
         away[kept[kept >= 0]] = self.away[kept >= 0]
         away[new] = _farthest_from(simple, new, self.dense, self.tree, self.spacing)

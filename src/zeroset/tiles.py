@@ -23,6 +23,7 @@ import numpy as np
 from ._extras import require
 from ._lattice import LIMIT
 from ._progress import Stages, peak_mib
+from ._unique import distinct
 from ._validate import as_points
 from .config import ReconstructionConfig
 from .contour import keyed_marching_cubes
@@ -723,7 +724,7 @@ def _agree(seams) -> tuple[list[dict], float | None, int]:
     for k, tile in enumerate(live):
         flips[tile] = {int(c): -1.0 for c in np.flatnonzero(sign[first[k] : first[k + 1]] < 0)}
     owning = np.isfinite(extremes[:, :, 0]).any(axis=1)  # parts with points of their own
-    return flips, disagreement, int(np.unique(group[owning]).size)
+    return flips, disagreement, int(distinct(group[owning]).size)
 
 
 def _contour_tile(

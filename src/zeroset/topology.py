@@ -6,6 +6,7 @@ import numpy as np
 from scipy import sparse
 from scipy.sparse.csgraph import connected_components
 
+from ._unique import distinct
 from .types import Mesh
 
 __all__ = [
@@ -125,7 +126,7 @@ def is_edge_manifold(faces: np.ndarray) -> bool:
 def is_consistently_oriented(faces: np.ndarray) -> bool:
     """Whether no directed edge occurs twice (neighbouring faces run shared edges oppositely)."""
     half = half_edges(faces)
-    return np.unique(edge_keys(half, faces.max(initial=-1) + 1)).shape[0] == half.shape[0]
+    return distinct(edge_keys(half, faces.max(initial=-1) + 1)).shape[0] == half.shape[0]
 
 
 def boundary_edges(faces: np.ndarray) -> np.ndarray:
@@ -175,7 +176,7 @@ def face_components(faces: np.ndarray, n_vertices: int) -> tuple[int, np.ndarray
 def euler_characteristic(mesh: Mesh) -> int:
     """V - E + F over the vertices that faces use."""
     n_edges = edge_ids(mesh.faces, mesh.n_vertices)[1].size
-    return int(np.unique(mesh.faces).size - n_edges + mesh.faces.shape[0])
+    return int(distinct(mesh.faces).size - n_edges + mesh.faces.shape[0])
 
 
 def face_area_vectors(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
@@ -195,7 +196,7 @@ def undo_turned_faces(moved: np.ndarray, previous: np.ndarray, faces: np.ndarray
     sent_back = np.zeros(moved.shape[0], dtype=bool)
     while True:
         turned = np.einsum("ij,ij->i", face_area_vectors(moved, faces), reference) <= 0.0
-        back = np.unique(faces[turned])
+        back = distinct(faces[turned])
         back = back[np.any(moved[back] != previous[back], axis=1)]
         if back.size == 0:
             return moved, sent_back

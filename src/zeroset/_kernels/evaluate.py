@@ -102,18 +102,22 @@ def _closest_face_rows(
     # bound over the boxes: a subtree is skipped when its box is no nearer than the best
     # triangle so far. `triangles` (S, 15) are the rows of closest_point_on_triangle in
     # leaf order, `degenerate` (S,) their flags; `slot` holds a row to start from (-1:
-    # none) and gets the row of the closest point, `bary` its barycentric coordinates.
+    # none) and gets the row of the closest point, `bary` its barycentric coordinates;
+    # `distance2` holds a bound (inf: none), only a nearer triangle is looked for, and
+    # gets the squared distance (the bound, and slot -1, where no triangle is nearer).
     n_leaves = leaf_start.shape[0]
     stack = np.zeros(128, dtype=np.int64)  # depth <= log2(n_leaves) + 1 < 64
     stack_distance = np.zeros(128)
     for i in range(start, stop):
         px, py, pz = points[i, 0], points[i, 1], points[i, 2]
-        best, best_slot = np.inf, slot[i]
+        best, best_slot = distance2[i], -1
         bu, bv, bw = 1.0, 0.0, 0.0
-        if best_slot >= 0:
-            best, bu, bv, bw = closest_point_on_triangle(
-                px, py, pz, triangles, best_slot, degenerate[best_slot]
+        if slot[i] >= 0:
+            d2, u, v, w = closest_point_on_triangle(
+                px, py, pz, triangles, slot[i], degenerate[slot[i]]
             )
+            if d2 < best:
+                best, best_slot, bu, bv, bw = d2, slot[i], u, v, w
         stack[0], stack_distance[0] = 1, 0.0
         top = 1
         while top > 0:
@@ -185,7 +189,9 @@ def build_hierarchy(vertices, faces):
     return triangles, degenerate, order, boxes, leaf_start, leaf_count
 
 
-def closest_points_on_mesh(points, vertices, faces, guess=None, in_order=False, hierarchy=None):
+def closest_points_on_mesh(
+    points, vertices, faces, guess=None, in_order=False, hierarchy=None, within=None
+):
     """Return the face (N,) int64 holding the closest point to each point, the point's
     barycentric coordinates (N, 3) in it (corner order) and the squared distance (N,).
 
@@ -197,20 +203,25 @@ def closest_points_on_mesh(points, vertices, faces, guess=None, in_order=False, 
     projection's), starts each search with a bound, so that it visits less of the tree;
     the result is the same but where two faces are equally close. `hierarchy`, the
     :func:`build_hierarchy` of `vertices` and `faces`, saves building it again for
-    another query on the same mesh.
+    another query on the same mesh. `within` (N,) float64 bounds the search: only a face
+    nearer than ``within[i]`` is looked for, and a point with none gets face -1 and the
+    squared bound, so that a query for what changed skips what lies far from it.
     """
     if hierarchy is None:
         hierarchy = build_hierarchy(vertices, faces)
     triangles, degenerate, face_of_slot, boxes, leaf_start, leaf_count = hierarchy
     n = points.shape[0]
-    query = np.arange(n) if in_order else spatial_order(points)
+    query = None if in_order else spatial_order(points)
     slot = np.full(n, -1, dtype=np.int64)
     if guess is not None:
         slot_of_face = np.zeros(faces.shape[0], dtype=np.int64)
         slot_of_face[face_of_slot] = np.arange(faces.shape[0])
-        slot = slot_of_face[guess[query]]
+        slot = slot_of_face[guess if in_order else guess[query]]
     bary = np.zeros((n, 3))
-    distance2 = np.zeros(n)
+    if within is None:
+        distance2 = np.full(n, np.inf)
+    else:
+        distance2 = np.square(within if in_order else within[query], dtype=np.float64)
     over_rows(
         _closest_face_rows,
         n,
@@ -224,8 +235,9 @@ def closest_points_on_mesh(points, vertices, faces, guess=None, in_order=False, 
         bary,
         distance2,
     )
+    face = np.where(slot >= 0, face_of_slot[slot], -1)
+    if in_order:
+        return face, bary, distance2
     out_face, out_bary, out_distance2 = np.zeros(n, np.int64), np.zeros((n, 3)), np.zeros(n)
-    out_face[query] = face_of_slot[slot]
-    out_bary[query] = bary
-    out_distance2[query] = distance2
+    out_face[query], out_bary[query], out_distance2[query] = face, bary, distance2
     return out_face, out_bary, out_distance2

@@ -18,6 +18,7 @@ from scipy import interpolate, sparse
 from scipy.sparse import csgraph
 from scipy.spatial import cKDTree
 
+from .._unique import distinct
 from .._validate import require_rng
 from ..errors import InputError
 from ..evaluate import sample_surface
@@ -484,7 +485,7 @@ def _wall_curvature(mesh: Mesh, normals: np.ndarray) -> tuple[np.ndarray, np.nda
         np.add.at(laplace, k, -edge)
         area += np.bincount(i, double_area / 6.0, v.shape[0])
     defined = area > 0
-    defined[np.unique(boundary_edges(f))] = False
+    defined[distinct(boundary_edges(f))] = False
     rows, cols = np.repeat(f, 2, axis=1).ravel(), np.roll(f, 1, axis=1).repeat(2, 1).ravel()
     ring = sparse.coo_matrix((np.ones(rows.size), (rows, cols)), shape=(v.shape[0],) * 2).tocsr()
     ring = ring + sparse.identity(v.shape[0], format="csr")

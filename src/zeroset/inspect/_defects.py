@@ -7,6 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage, optimize, special
 
+from .._unique import distinct
 from ._bump import FIT_EVALUATIONS, at_most, bump, covariance, fit_along_beams, raised_cosine
 from ._centreline import Pipe
 from ._measure import Ovality
@@ -181,14 +182,14 @@ def find_defects(
         )
     leaving = (wall.off_wall >= BRANCH) & ~skipped[:, None]
     openings = _wrapped_labels(leaving | ~np.isfinite(residual))
-    branching = np.unique(openings[leaving])
+    branching = distinct(openings[leaving])
     branches = [_branch(wall, openings == label, cell_axial * cell_arc) for label in branching]
     # its seam: the outward cells beyond the threshold that join its opening (the branch's
     # own wall, seen within `OFF_WALL` of the pipe's, reaches a branch's radius or so)
     opening = np.isin(openings, branching)
     seam = _wrapped_labels(opening | (np.nan_to_num(residual) > reported))
     near_branch = ndimage.binary_dilation(
-        np.isin(seam, np.unique(seam[opening])),
+        np.isin(seam, distinct(seam[opening])),
         iterations=int(np.ceil(BRANCH_MARGIN * pipe.radius / cell_axial)),
     )
     located = pipe.locate(samples) if located is None else located
@@ -199,7 +200,7 @@ def find_defects(
         # regions over the skipped stretches too: one that reaches a branch through them
         # is its seam; of the others, only the cells outside them are judged
         labels = _wrapped_labels(judged & (sign * np.nan_to_num(residual) > limit))
-        touching = np.unique(labels[near_branch & (labels >= 0)])
+        touching = distinct(labels[near_branch & (labels >= 0)])
         labels[~defined] = -1
         areas = np.bincount(labels[labels >= 0], minlength=labels.max() + 1) * cell_axial * cell_arc
         for label in np.setdiff1d(np.flatnonzero(areas >= smallest), touching):

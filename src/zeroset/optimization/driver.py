@@ -8,6 +8,7 @@ import numpy as np
 
 from .. import topology
 from .._progress import Stages
+from .._unique import distinct
 from .._validate import as_points, positive, require_rng
 from ..errors import InputError
 from ..neighbours import spatial_order
@@ -297,7 +298,7 @@ def _edges(faces: np.ndarray) -> np.ndarray:
 def _energy(v, faces, projection, kappa, c_rep) -> Energy:
     return Energy(
         distance=distance_energy(projection.distance2),
-        representation=representation_energy(np.unique(faces).size, c_rep),
+        representation=representation_energy(distinct(faces).size, c_rep),
         spring=spring_energy(v, _edges(faces), kappa),
     )
 
@@ -307,7 +308,7 @@ def _entry(step: str, kappa: float, energy: Energy, v, faces) -> dict:
         "step": step,
         "kappa": kappa,
         **energy.as_dict(),
-        "vertices": int(np.unique(faces).size),
+        "vertices": int(distinct(faces).size),
         "faces": int(faces.shape[0]),
     }
 
