@@ -13,6 +13,7 @@ from zeroset.optimization import MeshState, MoveOutcome, fit_vertices, project, 
 from zeroset.refine import split_edges
 from zeroset.synthetic import sample_cylinder, sample_sphere
 from zeroset.types import Mesh
+from zeroset.within import two_sided_errors
 
 # --------------------------------------------------------------------------- fixtures
 
@@ -272,6 +273,29 @@ def test_open_cylinder_gets_five_times_fewer_triangles_and_stays_as_close(cylind
 
 
 @pytest.mark.slow
+def test_a_tolerance_keeps_phase_1s_accuracy_in_fewer_triangles(cylinder):
+    # Phase 2 alone trades accuracy for triangles; with a tolerance every triangle stays
+    # within it of the starting mesh (phase 1's dense mesh, which the jets put on the
+    # surface), over its whole area, and as close to the true cylinder.
+    sample, _, free = cylinder
+    start = reconstruct(sample.points, tolerance=0).mesh
+    tolerance = 1e-3  # metres; the noise is 2 mm
+    result = optimize(start, sample.points, tolerance=tolerance, rng=0)
+    mesh = result.mesh
+    assert two_sided_errors(mesh, start).max() <= tolerance
+    assert result.stats["tolerance_strays"] == 0
+    assert mesh.n_faces * 5 <= start.n_faces
+    truth = [
+        np.abs(sample.distance(sample_surface(m, 50_000, rng=0)[0])).mean()
+        for m in (start, mesh, free.mesh)
+    ]
+    assert truth[1] <= 1.1 * truth[0] < truth[2]
+    assert len(topology.boundary_loops(mesh.faces)) == 2
+    assert topology.is_edge_manifold(mesh.faces)
+    assert topology.is_consistently_oriented(mesh.faces)
+
+
+@pytest.mark.slow
 def test_the_run_reports_moves_parameters_and_energy_terms(cylinder):
     _, start, result = cylinder
     assert set(result.moves) == {"collapse", "split", "swap"}
@@ -330,6 +354,8 @@ def test_bad_input_is_refused(tetra_mesh):
         optimize(tetra_mesh, points[:, :2])
     with pytest.raises(InputError, match="c_rep"):
         optimize(tetra_mesh, points, c_rep=-1.0)
+    with pytest.raises(InputError, match="tolerance"):
+        optimize(tetra_mesh, points, tolerance=0.0)
     with pytest.raises(TypeError, match="Mesh"):
         optimize((tetra_mesh.vertices, tetra_mesh.faces), points)
 

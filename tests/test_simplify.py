@@ -9,9 +9,10 @@ from zeroset import reconstruct, topology
 from zeroset.errors import InputError
 from zeroset.evaluate import closest_points_on_mesh, sample_surface
 from zeroset.jets import fit_jets
-from zeroset.simplify import choose_tolerance, simplify_mesh, triangle_grid, two_sided_errors
+from zeroset.simplify import choose_tolerance, simplify_mesh
 from zeroset.synthetic import sample_cylinder
 from zeroset.types import Mesh
+from zeroset.within import triangle_grid, two_sided_errors
 
 
 def height_field(seed: int, n: int = 40) -> Mesh:
@@ -205,10 +206,14 @@ def test_zero_tolerance_gives_the_dense_mesh(cylinder):
     assert "simplify_collapses" in dense.stats and dense.stats["simplify_collapses"] == 0
 
 
-def test_phase_2_takes_no_tolerance():
+def test_phase_2_holds_a_given_tolerance_of_the_dense_mesh():
     points = sample_cylinder(2000, radius=0.15, length=0.6, rng=0).points
-    with pytest.raises(InputError, match="tolerance"):
-        reconstruct(points, optimize=True, tolerance=1e-3)
+    tolerance = 2e-3
+    result = reconstruct(points, optimize=True, tolerance=tolerance)
+    assert result.stats["phase2_tolerance"] == tolerance
+    assert result.stats["phase2_tolerance_strays"] == 0
+    assert two_sided_errors(result.mesh, result.dense_mesh).max() <= tolerance
+    assert result.mesh.n_faces < result.dense_mesh.n_faces
     with pytest.raises(InputError, match="tolerance"):
         reconstruct(points, tolerance=-1.0)
 

@@ -74,7 +74,8 @@ class ReconstructionConfig:
     tolerance: float | None = _opt(
         None,
         "largest distance of the output's triangles from the dense mesh, data units (default: "
-        "twice the surface's own uncertainty; 0: the dense mesh)",
+        "twice the surface's own uncertainty; 0: the dense mesh; with phase 2, none unless "
+        "given)",
     )
     rim: str = _opt(
         "data",

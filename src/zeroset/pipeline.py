@@ -116,6 +116,8 @@ def reconstruct(
         Run phase 2 (:func:`zeroset.optimize`, Hoppe et al. 1993) on phase 1's dense mesh
         with every point left after cropping, including those that sampling kept from
         phase 1; phase 2 then chooses the triangles, and stage "simplify" does not run.
+        A ``tolerance`` in the config keeps phase 2's triangles within it of the dense
+        mesh (:func:`zeroset.optimize`'s `tolerance`).
     progress : bool
         Show a progress bar when stderr is a terminal.
 
@@ -140,8 +142,6 @@ def reconstruct(
     0
     """
     config = (config or ReconstructionConfig()).with_overrides(**overrides)
-    if optimize and config.tolerance:
-        raise InputError("tolerance applies to phase 1's mesh; phase 2 (optimize) takes none")
     points, viewpoints = _checked(points, viewpoints)
     optimization = None
     with Stages(stage_names(config, optimize), show=progress) as stages:

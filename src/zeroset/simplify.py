@@ -15,43 +15,34 @@ dense mesh, on the surface, so no vertex strays between the samples. Where an ed
 collapse, it is swapped for the other diagonal when that brings the samples nearer within
 the same limits. The chords then lie inside a convex surface; `unbias` moves every vertex
 along its normal by the mean sag of its faces, so that the signed error averages out.
-Last, every triangle is checked against the dense mesh over its whole area
-(`two_sided_errors`), and the longest edge of one that strays is split. Boundary vertices
+Last, every triangle is checked against the dense mesh over its whole area, and the
+longest edge of one that strays is split (`zeroset.within.hold_within`). Boundary vertices
 stay where they are and boundary edges are kept: the boundary loops are the dense mesh's
 own.
 """
 
 from __future__ import annotations
 
-from typing import NamedTuple
-
 import numpy as np
 
 from ._kernels._ahead import await_simplify_kernels
-from ._kernels.evaluate import build_hierarchy, closest_points_on_mesh
 from ._unique import distinct
 from .errors import InputError
 from .evaluate import closest_on_arrays
 from .neighbours import spatial_order
-from .optimization import MeshState, Projection
-from .refine import split_edges
+from .optimization import MeshState, Projection, on_itself
 from .surface import Surface
-from .thresholds import (
-    CHECK_ROUNDS,
-    MAX_FOLD_DEGREES_SIMPLIFY,
-    SAMPLE_MARGIN,
-    UNCERTAINTIES,
-)
+from .thresholds import MAX_FOLD_DEGREES_SIMPLIFY, SAMPLE_MARGIN, UNCERTAINTIES
 from .topology import (
     boundary_loops,
     face_area_vectors,
     is_consistently_oriented,
     is_edge_manifold,
-    undirected_edges,
 )
 from .types import Mesh
+from .within import hold_within
 
-__all__ = ["choose_tolerance", "simplify_mesh", "triangle_grid", "two_sided_errors", "unbias"]
+__all__ = ["choose_tolerance", "simplify_mesh", "unbias"]
 
 
 def choose_tolerance(
@@ -121,7 +112,7 @@ def simplify_mesh(mesh: Mesh, tolerance: float) -> tuple[Mesh, dict]:
     used = distinct(mesh.faces)
     if used.size < mesh.n_vertices:  # a vertex of no face is no sample of the surface
         mesh = Mesh(vertices=mesh.vertices[used], faces=np.searchsorted(used, mesh.faces))
-    samples = np.concatenate([mesh.vertices, mesh.vertices[mesh.faces].mean(axis=1)])
+    samples, itself = on_itself(mesh.vertices, mesh.faces)
     area_vectors = face_area_vectors(mesh.vertices, mesh.faces)
     normals = np.concatenate(
         [_vertex_normals(mesh.faces, mesh.n_vertices, area_vectors), area_vectors]
@@ -129,156 +120,24 @@ def simplify_mesh(mesh: Mesh, tolerance: float) -> tuple[Mesh, dict]:
     normals /= np.maximum(np.linalg.norm(normals, axis=1), 1e-300)[:, None]
     # In spatial order, the samples of neighbouring faces lie near in memory.
     order = spatial_order(samples)
-    samples, normals, itself = samples[order], normals[order], _on_itself(mesh)
-    on_itself = Projection(
+    samples, normals = samples[order], normals[order]
+    itself = Projection(
         face=itself.face[order], bary=itself.bary[order], distance2=itself.distance2[order]
     )
     await_simplify_kernels()  # on a fresh install, while a second process compiles them
     state = MeshState(
-        mesh.vertices, mesh.faces, samples, on_itself,
+        mesh.vertices, mesh.faces, samples, itself,
         kappa=0.0, c_rep=0.0, max_fold_degrees=MAX_FOLD_DEGREES_SIMPLIFY, spare=0.0,
+        limits=np.full(samples.shape[0], SAMPLE_MARGIN * tolerance),
     )  # fmt: skip
-    counts["simplify_collapses"] = state.collapse_within(SAMPLE_MARGIN * tolerance, normals)
+    counts["simplify_collapses"] = state.collapse_within(normals)
     simple = unbias(state.to_mesh(), samples)
-    # Every measured point within the margin, so that what lies between them stays within
-    # the tolerance; past the last round, what strays past the tolerance itself is counted.
-    check = _Check.of(simple, mesh)
-    for _ in range(CHECK_ROUNDS):
-        strays = check.errors() > SAMPLE_MARGIN * tolerance
-        if not strays.any():
-            break
-        simple, split, kept = _split_strays(check, strays)
-        counts["simplify_splits"] += split
-        check = check.after_split(simple, kept)
-    errors = check.errors()
-    counts["simplify_strays"] = int(np.count_nonzero(errors > tolerance))
+    simple, counts["simplify_splits"], counts["simplify_strays"] = hold_within(
+        simple, mesh, tolerance
+    )
     if simple.n_faces >= mesh.n_faces:  # a tolerance too fine for the surface's bends
         return mesh, dict.fromkeys(counts, 0)
     return simple, counts
-
-
-def two_sided_errors(simple: Mesh, dense: Mesh) -> np.ndarray:
-    """(F,) for each triangle of `simple`, the larger of two distances, in data units: the
-    farthest of its points from `dense`, and the farthest of the points of `dense` (its
-    vertices, edge midpoints and face centroids) whose closest point on `simple` lies on
-    it.
-
-    A triangle's points are a grid along its two sides from a corner of its shortest side,
-    no coarser than the dense mesh's median edge either way: as many as its area needs,
-    also for a long thin triangle.
-    """
-    return _Check.of(simple, dense).errors()
-
-
-class _Check(NamedTuple):
-    """`two_sided_errors`' two halves, kept so that a split re-measures only what changed:
-    `away` (F,) the farthest grid point of each face of `simple` from `dense`; `face`,
-    `back` (S,) the face of `simple` closest to each point of `dense` and its distance;
-    `points` (S, 3) those points, in `spatial_order`; `spacing` the grid's; `tree` the
-    bounding-volume hierarchy of `dense` (`_kernels.evaluate.build_hierarchy`)."""
-
-    simple: Mesh
-    dense: Mesh
-    tree: tuple
-    spacing: float
-    away: np.ndarray
-    points: np.ndarray
-    face: np.ndarray
-    back: np.ndarray
-
-    @classmethod
-    def of(cls, simple: Mesh, dense: Mesh) -> _Check:
-        """Measure every triangle of `simple` against `dense`."""
-        length = np.linalg.norm(dense.vertices[dense.faces[:, 1]]
-                                - dense.vertices[dense.faces[:, 0]], axis=1)  # fmt: skip
-        spacing = max(float(np.median(length)), 1e-300)
-        edges = undirected_edges(dense.faces)[0]
-        points = np.concatenate([dense.vertices, dense.vertices[edges].mean(axis=1),
-                                 dense.vertices[dense.faces].mean(axis=1)])  # fmt: skip
-        points = np.ascontiguousarray(points[spatial_order(points)])
-        _, face, back = closest_on_arrays(points, simple.vertices, simple.faces, in_order=True)
-        tree = build_hierarchy(dense.vertices, dense.faces)
-        away = _farthest_from(simple, np.arange(simple.n_faces), dense, tree, spacing)
-        return cls(simple, dense, tree, spacing, away, points, face, back)
-
-    def errors(self) -> np.ndarray:
-        """(F,) the two-sided error of each face of `simple`."""
-        error = self.away.copy()
-        np.maximum.at(error, self.face, self.back)
-        return error
-
-    def after_split(self, simple: Mesh, kept: np.ndarray) -> _Check:
-        """The check of `simple`, the old mesh split by `_split_strays`: `kept` (F_old,)
-        gives each old face's index in `simple`, -1 where it was split; the faces after
-        the kept ones are new. A point of `dense` keeps its kept face unless a new face is
-        closer; a point on a split face is measured again against all of `simple`."""
-        n_kept = np.count_nonzero(kept >= 0)
-        new = np.arange(n_kept, simple.n_faces)
-        face, back = kept[self.face], self.back.copy()
-        lost = face < 0
-        _, face[lost], back[lost] = closest_on_arrays(
-            self.points[lost], simple.vertices, simple.faces, in_order=True
-        )
-        near_face, _, near2 = closest_points_on_mesh(
-            self.points, simple.vertices, simple.faces[new], in_order=True, within=back
-        )
-        closer = near_face >= 0
-        face[closer], back[closer] = new[near_face[closer]], np.sqrt(near2[closer])
-        away = np.empty(simple.n_faces)
-        away[kept[kept >= 0]] = self.away[kept >= 0]
-        away[new] = _farthest_from(simple, new, self.dense, self.tree, self.spacing)
-        return self._replace(simple=simple, away=away, face=face, back=back)
-
-
-def _farthest_from(
-    mesh: Mesh, rows: np.ndarray, dense: Mesh, tree: tuple, spacing: float
-) -> np.ndarray:
-    """(R,) for each face `rows` (R,) of `mesh`, the farthest point of its grid
-    (`triangle_grid` at `spacing`) from `dense`, whose hierarchy is `tree`."""
-    points, face = triangle_grid(Mesh(vertices=mesh.vertices, faces=mesh.faces[rows]), spacing)
-    _, _, away = closest_on_arrays(points, dense.vertices, dense.faces, hierarchy=tree)
-    farthest = np.zeros(rows.size)
-    np.maximum.at(farthest, face, away)
-    return farthest
-
-
-def triangle_grid(mesh: Mesh, spacing: float) -> tuple[np.ndarray, np.ndarray]:
-    """Points (P, 3) on every triangle of `mesh`, and the face (P,) of each: the points of
-    each side at most `spacing` apart (corners included), and inside a grid of at most
-    `spacing` along the longest side and across it, so that a long thin triangle takes
-    about its area over the spacing squared."""
-    corners = mesh.vertices[mesh.faces]
-    sides = corners[:, [1, 2, 0]] - corners  # side k runs from corner k to corner k + 1
-    length = np.linalg.norm(sides, axis=2)
-    # Along each side.
-    steps = np.maximum(1, np.ceil(length / spacing)).astype(np.int64).ravel()
-    side = np.repeat(np.arange(steps.size), steps)
-    fraction = (np.arange(side.size) - np.repeat(np.cumsum(steps) - steps, steps)) / steps[side]
-    on_sides = corners.reshape(-1, 3)[side] + fraction[:, None] * sides.reshape(-1, 3)[side]
-    # Inside: (u, v) along the longest side ab and across it, towards the corner c.
-    rows = np.arange(mesh.n_faces)
-    k = np.argmax(length, axis=1)
-    a, c = corners[rows, k], corners[rows, (k + 2) % 3]
-    base = length[rows, k]
-    along = sides[rows, k] / np.maximum(base, 1e-300)[:, None]
-    c_u = np.einsum("ij,ij->i", c - a, along)
-    across = (c - a) - c_u[:, None] * along
-    height = np.linalg.norm(across, axis=1)
-    across /= np.maximum(height, 1e-300)[:, None]
-    n_u = np.maximum(1, np.ceil(base / spacing)).astype(np.int64)
-    n_v = np.maximum(1, np.ceil(height / spacing)).astype(np.int64)
-    counts = (n_u + 1) * (n_v + 1)
-    face = np.repeat(rows, counts)
-    index = np.arange(face.size) - np.repeat(np.cumsum(counts) - counts, counts)
-    u = (index // (n_v + 1)[face]) * (base / n_u)[face]
-    v = (index % (n_v + 1)[face]) * (height / n_v)[face]
-    slack = 1e-12 * base[face] * height[face]
-    keep = (v * c_u[face] <= height[face] * u + slack) & (
-        v * (base - c_u)[face] <= height[face] * (base[face] - u) + slack
-    )
-    face, u, v = face[keep], u[keep, None], v[keep, None]
-    inside = a[face] + u * along[face] + v * across[face]
-    return np.concatenate([on_sides, inside]), np.concatenate([side // 3, face])
 
 
 def unbias(mesh: Mesh, samples: np.ndarray) -> Mesh:
@@ -307,49 +166,9 @@ def unbias(mesh: Mesh, samples: np.ndarray) -> Mesh:
     return Mesh(vertices=vertices + shift[:, None] * vertex_normals, faces=faces)
 
 
-def _on_itself(mesh: Mesh) -> Projection:
-    """The projection of the vertices (each of some face) and then the face centroids of
-    `mesh` onto it: each vertex at a corner of one of its faces, each centroid at the
-    middle of its face."""
-    n_v, n_f = mesh.n_vertices, mesh.n_faces
-    face_of_vertex = np.empty(n_v, dtype=np.int64)
-    face_of_vertex[mesh.faces.ravel()] = np.repeat(np.arange(n_f), 3)
-    corner = np.argmax(mesh.faces[face_of_vertex] == np.arange(n_v)[:, None], axis=1)
-    bary = np.zeros((n_v, 3))
-    bary[np.arange(n_v), corner] = 1.0
-    return Projection(
-        face=np.concatenate([face_of_vertex, np.arange(n_f)]),
-        bary=np.concatenate([bary, np.full((n_f, 3), 1.0 / 3.0)]),
-        distance2=np.zeros(n_v + n_f),
-    )
-
-
 def _vertex_normals(faces: np.ndarray, n_vertices: int, area_vectors: np.ndarray) -> np.ndarray:
     """(V, 3) the sum of the area vectors (F, 3) of each vertex's faces (not normalised)."""
     corners = faces.reshape(-1)
     return np.column_stack(
         [np.bincount(corners, np.repeat(area_vectors[:, k], 3), n_vertices) for k in range(3)]
     )
-
-
-def _split_strays(check: _Check, strays: np.ndarray) -> tuple[Mesh, int, np.ndarray]:
-    """Split the longest edge of every straying triangle (F,) bool of ``check.simple``;
-    each new vertex goes to its closest point on ``check.dense``. Returns the mesh, the
-    edges split, and each old face's index in the new mesh (-1 where it was split;
-    `split_edges` keeps the others first, in order)."""
-    simple, dense = check.simple, check.dense
-    edges, corner_edge, _ = undirected_edges(simple.faces)
-    corners = simple.vertices[simple.faces]
-    length = np.linalg.norm(corners[:, [1, 2, 0]] - corners, axis=2)
-    longest = corner_edge[np.arange(simple.n_faces), np.argmax(length, axis=1)]
-    marked = np.zeros(edges.shape[0], dtype=bool)
-    marked[longest[strays]] = True
-    split = split_edges(simple, marked)
-    vertices = split.vertices.copy()
-    new = np.arange(simple.n_vertices, split.n_vertices)
-    vertices[new] = closest_on_arrays(
-        vertices[new], dense.vertices, dense.faces, hierarchy=check.tree
-    )[0]
-    unchanged = ~marked[corner_edge].any(axis=1)
-    kept = np.where(unchanged, np.cumsum(unchanged) - 1, -1)
-    return Mesh(vertices=vertices, faces=split.faces), int(np.count_nonzero(marked)), kept

@@ -619,7 +619,7 @@ def simplify(mesh: Mesh, surface: Surface, parameters: Parameters, config):
 
 def optimize_surface(mesh: Mesh, points, offset, config, progress: bool):
     """Stage "optimize": phase 2 on `mesh` (local frame) with every point (N, 3) of the
-    input that the crop keeps."""
+    input that the crop keeps, within the config's tolerance of `mesh` if it gives one."""
     if config.crop is not None:
         points = points[crop(points, config.crop[:3], config.crop[3:])]
     result = optimize_mesh(
@@ -627,12 +627,15 @@ def optimize_surface(mesh: Mesh, points, offset, config, progress: bool):
         points - offset,
         c_rep=config.c_rep,
         kappa=config.kappa,
+        tolerance=config.tolerance,
         rng=config.seed,
         progress=progress,
     )
+    held = ("tolerance", "tolerance_splits", "tolerance_strays")
     return result, {
         "phase2_points": result.stats["points_used"],
         "phase2_points_ignored": result.stats["points_ignored"],
+        **{f"phase2_{key}": result.stats[key] for key in held if key in result.stats},
     }
 
 

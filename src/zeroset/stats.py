@@ -79,6 +79,9 @@ SCHEMA = {
     # phase 2
     "phase2_points": Count("points phase 2 fitted the mesh to"),
     "phase2_points_ignored": Count("points phase 2 ignored (too far from the mesh)"),
+    "phase2_tolerance": Count("largest distance of phase 2's mesh from the dense mesh", "once"),
+    "phase2_tolerance_splits": Count("edges split where phase 2's triangles strayed"),
+    "phase2_tolerance_strays": Count("phase 2's triangles still farther than the tolerance"),
     # tiles
     "tiles": Count("tiles planned", "once"),
     "tiles_failed": Count("tiles left out, a gap in the mesh", "once"),

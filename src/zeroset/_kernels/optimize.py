@@ -7,6 +7,7 @@ The mesh lives in flat arrays with spare capacity, bundled in one named tuple ``
     F (Fc, 3) int64      faces, counter-clockwise   alive_f (Fc,) bool
     vf (Vc, W) int64     faces around each vertex   deg (Vc,) int64 (how many)
     X (N, 3) float64     data points
+    L2 (N,) float64      squared distance each point may lie from the mesh (inf: any)
     pf (N,) int64        face each point is assigned to (its projection)
     pb (N, 3) float64    barycentric coordinates of the projection in that face
     pd (N,) float64      squared distance to the projection
@@ -44,9 +45,12 @@ SPLIT = 1
 SWAP = 2
 
 H = -1  # corner index standing for the new vertex in candidate faces
-_LOCAL_ITERATIONS = 2  # alternations of projection and vertex solve per candidate start
+# Alternations of projection and vertex solve per candidate start (typed: a literal would
+# compile _fit_vertex once more).
+_LOCAL_ITERATIONS = np.int64(2)
+_HELD = np.int64(0)  # none: the new vertex keeps its start
 
-State = namedtuple("State", "V F alive_v alive_f vf deg X pf pb pd head nxt prv count sizes")
+State = namedtuple("State", "V F alive_v alive_f vf deg X L2 pf pb pd head nxt prv count sizes")
 Scratch = namedtuple(
     "Scratch",
     "pts face bary d2 trial_face trial_bary trial_d2 ring_i ring_j ring seen region new_faces "
@@ -58,8 +62,11 @@ Scratch = namedtuple(
 
 
 @jit
-def build_state(vertices, faces, points, face_of_point, bary, distance2, width, spare_v, spare_f):
-    """Return the State for a mesh and an assignment of points to faces.
+def build_state(
+    vertices, faces, points, limits2, face_of_point, bary, distance2, width, spare_v, spare_f
+):  # fmt: skip
+    """Return the State for a mesh and an assignment of points to faces, and the points'
+    squared limits (N,) (see `State`).
 
     `width` is the most faces a vertex may have; `spare_v`, `spare_f` the extra slots that
     splits may fill. Faces with a vertex of more than `width` faces are not allowed.
@@ -91,8 +98,8 @@ def build_state(vertices, faces, points, face_of_point, bary, distance2, width, 
     _link(head, nxt, prv, count, pf, np.arange(n_p))
     sizes = np.array([n_v, n_f, n_alive, vc, fc], dtype=np.int64)
     return State(
-        V, F, alive_v, alive_f, vf, deg, points, pf, bary.copy(), distance2.copy(),
-        head, nxt, prv, count, sizes,
+        V, F, alive_v, alive_f, vf, deg, points, limits2, pf, bary.copy(),
+        distance2.copy(), head, nxt, prv, count, sizes,
     )  # fmt: skip
 
 
@@ -368,16 +375,15 @@ def _gather_points(state, region, n_region, out):
 
 
 @jit
-def _project_local(
-    state, scratch, pts, new_faces, n_new, near, h, best_face, best_bary, best_d2, limit2=np.inf
-):  # fmt: skip
-    # Project every point in pts onto the nearest candidate face; returns the energy, or
-    # inf as soon as a point lies farther than sqrt(limit2) (the rest then unprojected).
+def _project_local(state, scratch, pts, new_faces, n_new, near, h, best_face, best_bary, best_d2):
+    # Project every point in pts onto the nearest candidate face; returns the energy (the
+    # squared distances), or inf as soon as a point lies farther than its limit (the rest
+    # then unprojected).
     # best_face holds a first guess per point (-1: none). A point with a guess g is
     # projected onto the faces t with near[g, t] only, g first, so that every other face
     # whose bounding sphere is no nearer is skipped. Fewer faces can only over-estimate
     # a distance.
-    V, X = state.V, state.X
+    V, X, L2 = state.V, state.X, state.L2
     triangles, degenerate, sphere = scratch.triangles, scratch.degenerate, scratch.sphere
     for t in range(n_new):
         row = triangles[t]
@@ -423,7 +429,7 @@ def _project_local(
                 best_bary[q, 0], best_bary[q, 1], best_bary[q, 2] = u, v, w
         best_d2[q] = best
         energy += best
-        if best > limit2:
+        if best > L2[p]:
             return np.inf
     return energy
 
@@ -464,23 +470,28 @@ def _spring(V, h, ring, n_ring):
 
 @jit
 def _fit_vertex(
-    state, scratch, pts, new_faces, n_new, near, ring, n_ring, kappa, target, face, bary, d2
-):
-    # Optimise the new vertex from scratch.position: alternate projecting the points onto
-    # the candidate faces and the least-squares position of the one free vertex (Hoppe
-    # 1993, §4.3): min_h sum_p |x_p - sum_c b_pc v_c|^2 + kappa sum_ring |h - v_u|^2.
+    state, scratch, pts, new_faces, n_new, near, ring, n_ring, kappa, target, face, bary, d2,
+    iterations,
+):  # fmt: skip
+    # Optimise the new vertex from scratch.position: alternate, at most `iterations` times,
+    # projecting the points onto the candidate faces and the least-squares position of the
+    # one free vertex (Hoppe 1993, §4.3):
+    # min_h sum_p |x_p - sum_c b_pc v_c|^2 + kappa sum_ring |h - v_u|^2.
     # Stops early once the energy is so far above `target` (what the move must beat) that
     # more alternations, each gaining less than the last, cannot reach it. `face` holds a
     # guess per point on entry, and face, bary, d2 the projection on return.
-    # Returns the local energy (distances plus springs); the position is in scratch.position.
+    # Returns the local energy (distances plus springs; inf where a point lies past its limit
+    # from the start); the position is in scratch.position.
     V, X = state.V, state.X
     h, trial = scratch.position, scratch.trial_position
     n = pts.shape[0]
     trial_face, trial_bary = scratch.trial_face[:n], scratch.trial_bary[:n]
     trial_d2 = scratch.trial_d2[:n]
     energy = _project_local(state, scratch, pts, new_faces, n_new, near, h, face, bary, d2)
+    if energy == np.inf:
+        return energy  # a point past its limit: the others are not projected to solve with
     energy += kappa * _spring(V, h, ring, n_ring)
-    for _ in range(_LOCAL_ITERATIONS):
+    for _ in range(iterations):
         weight = kappa * n_ring
         rx = ry = rz = 0.0
         for m in range(n_ring):
@@ -658,17 +669,19 @@ def _apply_collapse(state, i, j, h, edge, n_edge):
 
 
 @jit
-def try_collapse(state, scratch, i, j, kappa, c_rep, min_cos, force, result):
+def try_collapse(state, scratch, i, j, kappa, c_rep, min_cos, force, hold, result):
     """Collapse edge (i, j) into one vertex if that is legal and lowers the energy.
 
     `result` (2,) float64 gets the energy change and the number of the surviving vertex.
-    Returns an outcome code. With `force`, any legal move is made.
+    Returns an outcome code. With `force`, any legal move is made. With `hold`, the
+    boundary stays where it is: no boundary edge collapses, and an edge with one end on
+    the boundary collapses onto that end.
     """
     V = state.V
     n_edge, n_i, n_j, n_region, n_new, n_ring, boundary_i, boundary_j = _collapse_region(
         state, scratch, i, j
     )
-    if n_edge == 0:
+    if n_edge == 0 or (hold and boundary_i and boundary_j):
         return ILLEGAL_TOPOLOGY
     ring_i, ring_j, region = scratch.ring_i, scratch.ring_j, scratch.region
     pts, old = _gather_points(state, region, n_region, scratch.pts)
@@ -697,9 +710,10 @@ def try_collapse(state, scratch, i, j, kappa, c_rep, min_cos, force, result):
     face, bary, d2 = scratch.face[:n], scratch.bary[:n], scratch.d2[:n]
     _guesses(state, pts, scratch.global_face, n_new, face)
     _adjacent(scratch.new_faces, n_new, scratch.near)
+    iterations = _HELD if hold and (boundary_i or boundary_j) else _LOCAL_ITERATIONS
     new = _fit_vertex(
         state, scratch, pts, scratch.new_faces, n_new, scratch.near, scratch.ring, n_ring,
-        kappa, old + c_rep, face, bary, d2,
+        kappa, old + c_rep, face, bary, d2, iterations,
     )  # fmt: skip
     delta = new - old - c_rep
     result[0] = delta
@@ -734,9 +748,9 @@ def _facing(state, scratch, normals, pts, face, n_new, h, min_cos):
 
 
 @jit
-def try_collapse_within(state, scratch, normals, i, j, tolerance2, min_cos):
+def try_collapse_within(state, scratch, normals, i, j, min_cos):
     """Collapse edge (i, j) onto one of its ends if that is legal and every point on the
-    faces it changes stays within sqrt(`tolerance2`) of the new faces, on a face whose
+    faces it changes stays within its limit (``state.L2``) of the new faces, on a face whose
     normal is within arccos(`min_cos`) of the point's own (`normals` (N, 3), unit).
 
     The vertex that stays keeps its place (a half-edge collapse), so every vertex stays a
@@ -774,7 +788,6 @@ def try_collapse_within(state, scratch, normals, i, j, tolerance2, min_cos):
                 face,
                 bary,
                 d2,
-                tolerance2,
             )  # fmt: skip
         )
         if within:
@@ -791,8 +804,9 @@ def try_collapse_within(state, scratch, normals, i, j, tolerance2, min_cos):
 
 
 @jit
-def try_split(state, scratch, i, j, kappa, c_rep, min_cos, force, result):
-    """Split edge (i, j) at a new vertex if that lowers the energy (always legal).
+def try_split(state, scratch, i, j, kappa, c_rep, min_cos, force, hold, result):
+    """Split edge (i, j) at a new vertex if that lowers the energy (always legal, but for
+    a boundary edge with `hold`, which keeps the boundary as it is).
 
     `result` gets the energy change and the new vertex. Returns an outcome code.
     """
@@ -802,7 +816,7 @@ def try_split(state, scratch, i, j, kappa, c_rep, min_cos, force, result):
     width = vf.shape[1]
     edge = scratch.edge
     n_edge = _manifold_edge(state, i, j, edge)
-    if n_edge == 0:
+    if n_edge == 0 or (hold and n_edge == 1):
         return ILLEGAL_TOPOLOGY
     if sizes[0] >= sizes[3] or sizes[1] + n_edge > sizes[4]:
         return ILLEGAL_TOPOLOGY  # no room left; not a property of the mesh
@@ -840,7 +854,7 @@ def try_split(state, scratch, i, j, kappa, c_rep, min_cos, force, result):
     near[:n_new, :n_new] = True
     new = _fit_vertex(
         state, scratch, pts, new_faces, n_new, near, ring, 2 + n_edge, kappa, old - c_rep,
-        face, bary, d2,
+        face, bary, d2, _LOCAL_ITERATIONS,
     )  # fmt: skip
     delta = new - old + c_rep
     result[0] = delta
@@ -923,10 +937,10 @@ def _apply_swap(state, i, j, f1, f2, k, m):
 
 
 @jit
-def _swap_projection(state, scratch, limit2):
+def _swap_projection(state, scratch):
     # The points on the two faces of a swap (`_swap_region`) projected onto its two new
-    # faces: pts, their summed squared distances before and after (inf once one lies
-    # farther than sqrt(limit2)), and face, bary, d2 of the new projection.
+    # faces: pts, their energies before and after (inf once one lies farther than its
+    # limit), and face, bary, d2 of the new projection.
     two = np.int64(2)  # a literal 2 would compile each callee once more, for Literal[int](2)
     pts, old = _gather_points(state, scratch.edge, two, scratch.pts)
     n = pts.shape[0]
@@ -935,22 +949,23 @@ def _swap_projection(state, scratch, limit2):
     scratch.near[:2, :2] = True
     h = scratch.position  # no corner is the new vertex; unused
     new = _project_local(
-        state, scratch, pts, scratch.new_faces, two, scratch.near, h, face, bary, d2, limit2
+        state, scratch, pts, scratch.new_faces, two, scratch.near, h, face, bary, d2
     )
     return pts, old, new, face, bary, d2
 
 
 @jit
-def try_swap(state, scratch, i, j, kappa, c_rep, min_cos, force, result):
+def try_swap(state, scratch, i, j, kappa, c_rep, min_cos, force, hold, result):
     """Swap interior edge (i, j) for the other diagonal (k, m) if legal and lowering energy.
 
-    `result` gets the energy change. Returns an outcome code.
+    `result` gets the energy change. Returns an outcome code. `hold` changes nothing: a
+    swap never moves the boundary.
     """
     V = state.V
     f1, f2, k, m = _swap_region(state, scratch, i, j)
     if f1 < 0:
         return ILLEGAL_TOPOLOGY
-    pts, old, new, face, bary, d2 = _swap_projection(state, scratch, np.inf)
+    pts, old, new, face, bary, d2 = _swap_projection(state, scratch)
     old += kappa * ((V[i, 0] - V[j, 0]) ** 2 + (V[i, 1] - V[j, 1]) ** 2 + (V[i, 2] - V[j, 2]) ** 2)
     new += kappa * ((V[k, 0] - V[m, 0]) ** 2 + (V[k, 1] - V[m, 1]) ** 2 + (V[k, 2] - V[m, 2]) ** 2)
     delta = new - old
@@ -968,15 +983,15 @@ def try_swap(state, scratch, i, j, kappa, c_rep, min_cos, force, result):
 
 
 @jit
-def try_swap_within(state, scratch, normals, i, j, tolerance2, min_cos):
+def try_swap_within(state, scratch, normals, i, j, min_cos):
     """Swap interior edge (i, j) for the other diagonal if that is legal, brings the points
     on its two faces nearer (their squared distances summed) and keeps each within
-    sqrt(`tolerance2`) of a face within arccos(`min_cos`) of its normal (as
-    `try_collapse_within`). Returns an outcome code."""
+    its limit of a face within arccos(`min_cos`) of its normal (as `try_collapse_within`).
+    Returns an outcome code."""
     f1, f2, k, m = _swap_region(state, scratch, i, j)
     if f1 < 0:
         return ILLEGAL_TOPOLOGY
-    pts, old, new, face, bary, d2 = _swap_projection(state, scratch, tolerance2)
+    pts, old, new, face, bary, d2 = _swap_projection(state, scratch)
     if new >= old:
         return ENERGY_INCREASE
     two = np.int64(2)
@@ -1035,14 +1050,15 @@ def _owned(state, owner, label, i, j):
 
 @jit
 def run_pass(
-    state, scratch, owner, label, edges, kappa, c_rep, min_cos, seed, max_attempts, tally,
-    deferred,
+    state, scratch, owner, label, edges, kappa, c_rep, min_cos, hold, seed, max_attempts,
+    tally, deferred,
 ):  # fmt: skip
     """Try the moves on every edge of `edges` (E, 2), in that order, until none is left.
 
     For each candidate edge, collapse, then swap, then split are tried (Hoppe 1993, §4.2);
     after an accepted move the edges around its vertices join the queue at random places.
-    `tally` (3, 4) int64 counts the outcome of each kind of move.
+    `tally` (3, 4) int64 counts the outcome of each kind of move. With `hold`, no move
+    moves the boundary (see `try_collapse`, `try_split`).
 
     With `label` >= 0, an edge is tried only if every face around its ends has all its
     corners labelled `label` in `owner` (Vc,) int64 (see `_owned`); the others
@@ -1078,20 +1094,20 @@ def run_pass(
         if not alive_v[i] or not alive_v[j] or _edge_faces(state, i, j, scratch.probe) == 0:
             continue  # the edge went with an earlier move
         attempts += 1
-        outcome = try_collapse(state, scratch, i, j, kappa, c_rep, min_cos, unforced, result)
+        outcome = try_collapse(state, scratch, i, j, kappa, c_rep, min_cos, unforced, hold, result)
         tally[COLLAPSE, outcome] += 1
         if outcome == ACCEPTED:
             total += result[0]
             tail = _push_star(state, i, queue, tail, capacity, head)
             continue
-        outcome = try_swap(state, scratch, i, j, kappa, c_rep, min_cos, unforced, result)
+        outcome = try_swap(state, scratch, i, j, kappa, c_rep, min_cos, unforced, hold, result)
         tally[SWAP, outcome] += 1
         if outcome == ACCEPTED:
             total += result[0]
             tail = _push_star(state, i, queue, tail, capacity, head)
             tail = _push_star(state, j, queue, tail, capacity, head)
             continue
-        outcome = try_split(state, scratch, i, j, kappa, c_rep, min_cos, unforced, result)
+        outcome = try_split(state, scratch, i, j, kappa, c_rep, min_cos, unforced, hold, result)
         tally[SPLIT, outcome] += 1
         if outcome == ACCEPTED:
             total += result[0]
@@ -1103,9 +1119,7 @@ def run_pass(
 
 
 @jit
-def run_within_pass(
-    state, scratch, normals, owner, label, edges, tolerance2, min_cos, tally, deferred
-):  # fmt: skip
+def run_within_pass(state, scratch, normals, owner, label, edges, min_cos, tally, deferred):
     """Try `try_collapse_within` on every edge of `edges` (E, 2), in that order; after a
     collapse, the edges around its vertex join the end of the queue; where no collapse is
     made, `try_swap_within` is tried, and after a swap the edges around the new diagonal's
@@ -1137,13 +1151,13 @@ def run_within_pass(
                 deferred[n_deferred, 0], deferred[n_deferred, 1] = i, j
                 n_deferred += 1
             continue
-        outcome = try_collapse_within(state, scratch, normals, i, j, tolerance2, min_cos)
+        outcome = try_collapse_within(state, scratch, normals, i, j, min_cos)
         tally[COLLAPSE, outcome] += 1
         if outcome == ACCEPTED:
             done += 1
             tail = _push_edges(state, i, queue, tail, head)
             continue
-        outcome = try_swap_within(state, scratch, normals, i, j, tolerance2, min_cos)
+        outcome = try_swap_within(state, scratch, normals, i, j, min_cos)
         tally[SWAP, outcome] += 1
         if outcome == ACCEPTED:
             # The new diagonal's ends, corners 1 and 2 of the first face (i, m, k): their

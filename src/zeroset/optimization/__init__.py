@@ -2,7 +2,7 @@
 
 from .driver import OptimizationResult, optimize_mesh
 from .energy import Energy, distance_energy, representation_energy, spring_energy
-from .fit import Projection, fit_vertices, project
+from .fit import Projection, fit_vertices, on_itself, project
 from .moves import MOVES, MeshState, MoveOutcome
 
 __all__ = [
@@ -14,6 +14,7 @@ __all__ = [
     "Projection",
     "distance_energy",
     "fit_vertices",
+    "on_itself",
     "optimize_mesh",
     "project",
     "representation_energy",

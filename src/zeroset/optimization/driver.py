@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -10,12 +11,14 @@ from .. import topology
 from .._progress import Stages
 from .._unique import distinct
 from .._validate import as_points, positive, require_rng
-from ..errors import InputError
+from ..errors import InputError, SurfaceWarning
 from ..neighbours import spatial_order
+from ..thresholds import SAMPLE_MARGIN
 from ..types import Mesh
+from ..within import hold_within
 from . import schedule
 from .energy import Energy, distance_energy, representation_energy, spring_energy
-from .fit import Projection, fit_vertices, project
+from .fit import Projection, fit_vertices, on_itself, project
 from .moves import MOVES, MeshState, MoveOutcome
 
 __all__ = ["OptimizationResult", "optimize_mesh"]
@@ -68,6 +71,7 @@ def optimize_mesh(
     kappa: float | None = None,
     max_distance: float | None = None,
     max_fold_degrees: float = schedule.MAX_FOLD_DEGREES,
+    tolerance: float | None = None,
     rng=0,
     progress: bool = False,
 ) -> OptimizationResult:
@@ -100,6 +104,15 @@ def optimize_mesh(
     max_fold_degrees : float
         No move may leave two neighbouring faces folded further than this, unless they
         were before it.
+    tolerance : float, optional
+        Keep the result within this distance (data units) of the starting mesh over each
+        triangle's whole area, so that phase 2 keeps phase 1's accuracy in few triangles.
+        Phase 1 has averaged the points' noise out, so the mesh is then fitted to the
+        starting mesh's own vertices and face centroids instead of the points (which still
+        set sigma and c_rep): no move and no fit may take one farther than
+        ``SAMPLE_MARGIN`` times the tolerance, the boundary stays where it is, and every
+        triangle is checked against the starting mesh as stage "simplify" checks its own
+        (:func:`zeroset.within.hold_within`). Default: none, the points are fitted.
     rng : numpy.random.Generator or int or None
         Seed of the random order of the candidate edges.
     progress : bool
@@ -112,8 +125,8 @@ def optimize_mesh(
     Raises
     ------
     InputError
-        If the mesh has no faces, is not edge-manifold, or the points are not (N, 3) and
-        finite.
+        If the mesh has no faces, is not edge-manifold, the points are not (N, 3) and
+        finite, or a parameter is not a positive number.
 
     See Also
     --------
@@ -144,8 +157,12 @@ def optimize_mesh(
     (True, True)
     """
     vertices, faces = _check_mesh(mesh)
+    start_mesh = Mesh(vertices=vertices, faces=faces)
     points = as_points(points, min_rows=4)
-    for name, value in (("c_rep", c_rep), ("kappa", kappa), ("max_distance", max_distance)):
+    for name, value in (
+        ("c_rep", c_rep), ("kappa", kappa), ("max_distance", max_distance),
+        ("tolerance", tolerance),
+    ):  # fmt: skip
         positive(value, name, allow_none=True)
     if not 0.0 < float(max_fold_degrees) <= 180.0:
         raise InputError(f"max_fold_degrees must lie in (0, 180]; got {max_fold_degrees!r}")
@@ -179,11 +196,21 @@ def optimize_mesh(
             f"only {x.shape[0]} points lie within max_distance={cutoff * scale:.4g} of the mesh"
         )
     projection = _subset(start, keep)
+    n_data, limits = x.shape[0], None
+    if tolerance is not None:
+        # Phase 1 has averaged the points' noise out: fit its surface, the starting mesh's
+        # vertices and face centroids, each held within the margin of the tolerance.
+        x, projection = _samples(v, faces)
+        limits = np.full(x.shape[0], SAMPLE_MARGIN * tolerance / scale)
+        notes.append(
+            f"tolerance = {tolerance:.6g}: fitted to {x.shape[0]} samples of the starting mesh "
+            f"(its vertices and face centroids), each held within {SAMPLE_MARGIN:g} x it"
+        )
     per_vertex = x.shape[0] / vertices.shape[0]
     if c_rep is None:
-        c_rep = schedule.C_REP_FACTOR * sigma**2 * np.log(x.shape[0])
+        c_rep = schedule.C_REP_FACTOR * sigma**2 * np.log(n_data)
         notes.append(
-            f"c_rep = {c_rep:.6g}: {schedule.C_REP_FACTOR:g} x sigma^2 x ln {x.shape[0]} points "
+            f"c_rep = {c_rep:.6g}: {schedule.C_REP_FACTOR:g} x sigma^2 x ln {n_data} points "
             "(normalised)"
         )
     if kappa is None:
@@ -205,6 +232,7 @@ def optimize_mesh(
             with stages.stage(name):
                 v, faces, projection = _optimise_level(
                     x,
+                    limits,
                     v,
                     faces,
                     projection,
@@ -220,6 +248,18 @@ def optimize_mesh(
         stages.close()
 
     result_mesh = Mesh(vertices=v * scale + centre, faces=faces)
+    held = {}
+    if tolerance is not None:
+        result_mesh, splits, strays = hold_within(result_mesh, start_mesh, tolerance)
+        held = {"tolerance": float(tolerance), "tolerance_splits": splits}
+        held["tolerance_strays"] = strays
+        if strays:
+            warnings.warn(
+                f"{strays} triangle(s) of phase 2 lie farther than the tolerance "
+                f"{tolerance:.4g} from the starting mesh after every check round",
+                SurfaceWarning,
+                stacklevel=2,
+            )
     moves = {
         kind: {outcome.name.lower(): int(tally[row, outcome]) for outcome in MoveOutcome}
         for row, kind in enumerate(MOVES)
@@ -239,55 +279,71 @@ def optimize_mesh(
             "notes": notes,
         },
         stats={
-            "points_used": int(x.shape[0]),
+            "points_used": n_data,
             "points_ignored": int(np.count_nonzero(~keep)),
             "vertices_before": int(vertices.shape[0]),
             "faces_before": int(mesh.n_faces),
             "vertices": result_mesh.n_vertices,
             "faces": result_mesh.n_faces,
+            **held,
         },
         timings=dict(stages.timings),
     )
 
 
-def _optimise_level(x, v, faces, projection, kappa, c_rep, max_fold, sigma, rng, tally, history):
+def _optimise_level(
+    x, limits, v, faces, projection, kappa, c_rep, max_fold, sigma, rng, tally, history
+):  # fmt: skip
     """Fit, then passes of moves each followed by a fit, until a pass accepts nothing.
+    `limits` (N,) or None as for `fit_vertices`; with limits, the boundary stays.
 
     The first pass tries every edge; a later one the edges of the vertices that the fit
     before it moved by more than ``schedule.MOVED_SIGMAS`` x sigma (the others would be
     evaluated as they were).
     """
     min_cos = float(np.cos(np.radians(max_fold)))
+    hold = limits is not None  # with a tolerance, the boundary stays the starting mesh's
     v, projection, _ = fit_vertices(
         x, v, faces, _edges(faces), kappa=kappa, projection=projection, min_cos=min_cos,
-        in_order=True,
+        in_order=True, limits=limits, fixed=_held(faces, v, hold),
     )  # fmt: skip
-    history.append(_entry("fit", kappa, _energy(v, faces, projection, kappa, c_rep), v, faces))
+    energy = _energy(v, faces, projection, kappa, c_rep)
+    history.append(_entry("fit", kappa, energy, v, faces))
     candidates = None
     for _ in range(schedule.MAX_PASSES):
         state = MeshState(
-            v, faces, x, projection, kappa=kappa, c_rep=c_rep, max_fold_degrees=max_fold
-        )
+            v, faces, x, projection, kappa=kappa, c_rep=c_rep, max_fold_degrees=max_fold,
+            limits=limits, hold_boundary=hold,
+        )  # fmt: skip
         _, counts = state.run_pass(rng, 20 * 3 * faces.shape[0] + 1000, candidates)
         tally += counts
         moved = state.to_mesh()
         v, faces = moved.vertices, moved.faces
         projection = project(x, v, faces, guess=state.point_faces, in_order=True)
-        history.append(
-            _entry("moves", kappa, _energy(v, faces, projection, kappa, c_rep), v, faces)
-        )
+        energy = _energy(v, faces, projection, kappa, c_rep)
+        history.append(_entry("moves", kappa, energy, v, faces))
         edges = _edges(faces)
         fitted, projection, _ = fit_vertices(
             x, v, faces, edges, kappa=kappa, projection=projection, min_cos=min_cos,
-            in_order=True,
+            in_order=True, limits=limits, fixed=_held(faces, v, hold),
         )  # fmt: skip
         moved = np.linalg.norm(fitted - v, axis=1) > schedule.MOVED_SIGMAS * sigma
         v = fitted
-        history.append(_entry("fit", kappa, _energy(v, faces, projection, kappa, c_rep), v, faces))
+        energy = _energy(v, faces, projection, kappa, c_rep)
+        history.append(_entry("fit", kappa, energy, v, faces))
         candidates = edges[moved[edges].any(axis=1)]
         if counts[:, MoveOutcome.ACCEPTED].sum() == 0 or candidates.shape[0] == 0:
             break
     return v, faces, projection
+
+
+def _held(faces: np.ndarray, v: np.ndarray, hold: bool) -> np.ndarray | None:
+    """(M,) bool: the boundary vertices of the mesh (v, faces) if `hold`, else None."""
+    if not hold:
+        return None
+    fixed = np.zeros(v.shape[0], dtype=bool)
+    fixed[topology.boundary_edges(faces).reshape(-1)] = True
+    return fixed
 
 
 def _edges(faces: np.ndarray) -> np.ndarray:
@@ -311,6 +367,14 @@ def _entry(step: str, kappa: float, energy: Energy, v, faces) -> dict:
         "vertices": int(distinct(faces).size),
         "faces": int(faces.shape[0]),
     }
+
+
+def _samples(v: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, Projection]:
+    """The vertices and face centroids of the mesh (v, faces) (`on_itself`) in spatial
+    order, and their projection onto it."""
+    samples, itself = on_itself(v, faces)
+    order = spatial_order(samples)
+    return np.ascontiguousarray(samples[order]), _subset(itself, order)
 
 
 def _subset(projection: Projection, keep: np.ndarray) -> Projection:

@@ -20,7 +20,7 @@ from .._kernels import evaluate as _kernels
 from ..topology import edge_face_pairs, fold_cosines
 from .energy import distance_energy, spring_energy
 
-__all__ = ["Projection", "fit_vertices", "project"]
+__all__ = ["Projection", "fit_vertices", "on_itself", "project"]
 
 # Weight of the proximal term mu |v - v_old|^2 that makes the system definite where a
 # vertex has neither points nor springs, relative to the largest diagonal entry. It
@@ -70,6 +70,24 @@ def project(
     return Projection(face=face, bary=bary, distance2=distance2)
 
 
+def on_itself(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, Projection]:
+    """The vertices of a mesh (each of some face) and then its face centroids, (V + F, 3),
+    and their projection onto it: each vertex at a corner of one of its faces, each
+    centroid at the middle of its face."""
+    n_v, n_f = vertices.shape[0], faces.shape[0]
+    face_of_vertex = np.empty(n_v, dtype=np.int64)
+    face_of_vertex[faces.ravel()] = np.repeat(np.arange(n_f), 3)
+    corner = np.argmax(faces[face_of_vertex] == np.arange(n_v)[:, None], axis=1)
+    bary = np.zeros((n_v, 3))
+    bary[np.arange(n_v), corner] = 1.0
+    projection = Projection(
+        face=np.concatenate([face_of_vertex, np.arange(n_f)]),
+        bary=np.concatenate([bary, np.full((n_f, 3), 1.0 / 3.0)]),
+        distance2=np.zeros(n_v + n_f),
+    )
+    return np.concatenate([vertices, vertices[faces].mean(axis=1)]), projection
+
+
 def fit_vertices(
     points: np.ndarray,
     vertices: np.ndarray,
@@ -82,12 +100,15 @@ def fit_vertices(
     max_iterations: int = 10,
     tolerance: float = 1e-4,
     in_order: bool = False,
+    limits: np.ndarray | None = None,
+    fixed: np.ndarray | None = None,
 ) -> tuple[np.ndarray, Projection, int]:
     """Optimise the vertex positions for fixed connectivity; never raises the energy.
 
     Nor does it fold the mesh: a solve is kept only if it leaves no more pairs of
     neighbouring faces folded beyond `min_cos` than before, none sharper than the sharpest
-    before, and no degenerate face.
+    before, and no degenerate face. With `limits`, the corners of every face that a solve
+    takes a point farther from than its limit keep their places, until no point is.
 
     Parameters
     ----------
@@ -108,6 +129,11 @@ def fit_vertices(
         Stop when an alternation lowers E_dist + E_spring by less than this share.
     in_order : bool
         The points are in :func:`~zeroset.neighbours.spatial_order` (faster projections).
+    limits : (N,) float64, optional
+        Distance from the mesh that each point may not pass (inf: none); every point lies
+        within it on the given mesh. Default: none.
+    fixed : (M,) bool, optional
+        Vertices that keep their places. Default: none.
 
     Returns
     -------
@@ -126,10 +152,16 @@ def fit_vertices(
     kept = 0
     for _ in range(max_iterations):
         trial = _solve(points, vertices, faces, projection, spring)
+        if fixed is not None:
+            trial[fixed] = vertices[fixed]
+        trial_projection = project(points, trial, faces, guess=projection.face, in_order=in_order)
+        if limits is not None:
+            trial, trial_projection = _hold_back(
+                points, vertices, faces, projection, trial, trial_projection, limits, in_order
+            )
         trial_folds = _folds(trial, faces, pairs, min_cos)
         if trial_folds[0] > folds[0] or (trial_folds[0] > 0 and trial_folds[1] < folds[1]):
             break
-        trial_projection = project(points, trial, faces, guess=projection.face, in_order=in_order)
         trial_energy = distance_energy(trial_projection.distance2) + spring_energy(
             trial, edges, kappa
         )
@@ -141,6 +173,22 @@ def fit_vertices(
         if improvement < tolerance:
             break
     return vertices, projection, kept
+
+
+def _hold_back(points, vertices, faces, before, trial, projection, limits, in_order):
+    """The `trial` positions (M, 3) with the corners of the faces that hold a point farther
+    than its limit (N,) back at `vertices`, both its face on `trial` and its face `before`
+    (its projection onto `vertices`, within the limit), repeated until no point is
+    farther; and the points' projection onto the result. Ends, since a point whose face
+    before is all back lies within its limit."""
+    while True:
+        over = projection.distance2 > limits**2
+        if not over.any():
+            return trial, projection
+        corners = faces[np.concatenate([projection.face[over], before.face[over]])].reshape(-1)
+        trial = trial.copy()
+        trial[corners] = vertices[corners]
+        projection = project(points, trial, faces, guess=projection.face, in_order=in_order)
 
 
 def _folds(vertices, faces, pairs, min_cos) -> tuple[int, float]:

@@ -88,6 +88,12 @@ class MeshState:
         unless they did so before the move.
     spare : float
         Room for new vertices and faces from splits, as a share of the current counts.
+    limits : (N,) float64, optional
+        Distance from the mesh that no move may take each point beyond (inf: none);
+        default none.
+    hold_boundary : bool
+        No move moves the boundary: no boundary edge collapses or splits, and an edge with
+        one end on the boundary collapses onto that end.
     """
 
     def __init__(
@@ -101,15 +107,19 @@ class MeshState:
         c_rep: float,
         max_fold_degrees: float = 90.0,
         spare: float = 1.0,
+        limits: np.ndarray | None = None,
+        hold_boundary: bool = False,
     ) -> None:
         degree = np.bincount(faces.reshape(-1), minlength=vertices.shape[0])
         width = max(32, int(degree.max(initial=0)) + 8)
         spare_v = int(spare * vertices.shape[0]) + 16 * (LABELS + 1)
+        limits = np.full(len(points), np.inf) if limits is None else limits
         self._state = _kernels.build_state(
             *inputs(
                 np.asarray(vertices, dtype=np.float64),
                 np.asarray(faces, dtype=np.int64),
                 np.asarray(points, dtype=np.float64),
+                np.square(limits, dtype=np.float64),
                 np.asarray(projection.face, dtype=np.int64),
                 np.asarray(projection.bary, dtype=np.float64),
                 np.asarray(projection.distance2, dtype=np.float64),
@@ -123,6 +133,7 @@ class MeshState:
         self.kappa = float(kappa)
         self.c_rep = float(c_rep)
         self.min_cos = float(np.cos(np.radians(max_fold_degrees)))
+        self.hold_boundary = bool(hold_boundary)
         self.last_delta = 0.0
 
     def _scratches(self, n: int) -> list:
@@ -137,7 +148,7 @@ class MeshState:
         (scratch,) = self._scratches(1)
         outcome = kernel(
             self._state, scratch, int(i), int(j), self.kappa, self.c_rep, self.min_cos,
-            bool(force), result,
+            bool(force), self.hold_boundary, result,
         )  # fmt: skip
         self.last_delta = float(result[0])
         return MoveOutcome(outcome)
@@ -215,8 +226,8 @@ class MeshState:
         )
         return delta + last_delta, tally + last_tally
 
-    def collapse_within(self, tolerance: float, normals: np.ndarray) -> int:
-        """Collapse edges, shortest first, while every point stays within `tolerance` of
+    def collapse_within(self, normals: np.ndarray) -> int:
+        """Collapse edges, shortest first, while every point stays within its limit of
         the face it lies on, and that face within ``max_fold_degrees`` of the point's unit
         normal (`normals` (N, 3); `_kernels.optimize.try_collapse_within`); the edges
         around each collapse join the end of the queue. Returns the number of collapses.
@@ -227,7 +238,6 @@ class MeshState:
         state = self._state
         normals = np.ascontiguousarray(normals, dtype=np.float64)
         edges = _by_length(state, _unique_edges(state))
-        squared = float(tolerance) ** 2
         lanes = min(LABELS, numba.get_num_threads())
         scratches = self._scratches(lanes)
 
@@ -235,8 +245,8 @@ class MeshState:
             tally = np.zeros((3, 4), dtype=np.int64)
             deferred = np.zeros((max(4 * job_edges.shape[0], 1024), 2), dtype=np.int64)
             done, n_deferred = _kernels.run_within_pass(
-                job_state, scratch, normals, owner, label, job_edges, squared, self.min_cos,
-                tally, deferred,
+                job_state, scratch, normals, owner, label, job_edges, self.min_cos, tally,
+                deferred,
             )  # fmt: skip
             return done, deferred[:n_deferred]
 
@@ -278,8 +288,8 @@ class MeshState:
         tally = np.zeros((3, 4), dtype=np.int64)
         deferred = np.zeros((max(8 * edges.shape[0], 1024), 2), dtype=np.int64)
         delta, n_deferred = _kernels.run_pass(
-            state, scratch, owner, label, edges, self.kappa, self.c_rep, self.min_cos, seed,
-            max_attempts, tally, deferred,
+            state, scratch, owner, label, edges, self.kappa, self.c_rep, self.min_cos,
+            self.hold_boundary, seed, max_attempts, tally, deferred,
         )  # fmt: skip
         return float(delta), tally, deferred[:n_deferred]
 
