@@ -7,6 +7,7 @@ import pytest
 from zeroset import io, topology
 from zeroset.cli import main
 from zeroset.synthetic import sample_cylinder, sample_sphere, sample_torus, scan_pipe
+from zeroset.within import two_sided_errors
 
 
 @pytest.fixture(scope="module")
@@ -467,6 +468,18 @@ def test_optimize_command_writes_a_smaller_mesh_and_a_report(sphere_file, tmp_pa
     assert "phase 2" in capsys.readouterr().out
 
 
+@pytest.mark.slow
+def test_optimize_command_holds_a_tolerance_of_the_starting_mesh(sphere_file, tmp_path):
+    start, out = tmp_path / "start.ply", tmp_path / "held.ply"
+    assert main(["reconstruct", str(sphere_file), "-o", str(start), "--tolerance", "0"]) == 0
+    argv = ["optimize", str(start), str(sphere_file), "-o", str(out), "--tolerance", "0.01"]
+    assert main(argv + ["--quiet"]) == 0
+    before, after = io.read_mesh(start), io.read_mesh(out)
+    assert after.n_faces < before.n_faces / 2
+    assert two_sided_errors(after, before).max() <= 0.01
+    assert topology.euler_characteristic(after) == 2
+
+
 @pytest.mark.parametrize(
     "argv, message",
     [
@@ -474,6 +487,7 @@ def test_optimize_command_writes_a_smaller_mesh_and_a_report(sphere_file, tmp_pa
         (["optimize", "{mesh}", "{points}", "-o", "{tmp}/no/out.ply"], "does not exist"),
         (["optimize", "{tmp}/missing.ply", "{points}", "-o", "{tmp}/out.ply"], "missing.ply"),
         (["optimize", "{mesh}", "{points}", "-o", "{tmp}/o.ply", "--c-rep", "-1"], "c_rep"),
+        (["optimize", "{mesh}", "{points}", "-o", "{tmp}/o.ply", "--tolerance", "0"], "tolerance"),
     ],
 )
 def test_optimize_command_errors(argv, message, sphere_file, tmp_path, capsys):

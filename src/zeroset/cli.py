@@ -222,6 +222,12 @@ def _optimize_command(commands, parents) -> None:
     parser.add_argument(
         "--kappa", type=float, help="first spring constant (default: from the data)"
     )
+    parser.add_argument(
+        "--tolerance",
+        type=float,
+        help="keep the result within this distance of the starting mesh, fitted to it instead "
+        "of the points (default: none)",
+    )
     parser.add_argument("--seed", type=int, default=0, help="seed of the random move order")
     parser.set_defaults(command="optimize", run=_run_optimize)
 
@@ -687,8 +693,8 @@ def _run_optimize(args: argparse.Namespace) -> int:
     mesh = io.read_mesh(args.mesh)
     cloud = io.read_points(args.points)
     result = optimize_mesh(
-        mesh, cloud.points, c_rep=args.c_rep, kappa=args.kappa, rng=args.seed,
-        progress=not args.quiet,
+        mesh, cloud.points, c_rep=args.c_rep, kappa=args.kappa, tolerance=args.tolerance,
+        rng=args.seed, progress=not args.quiet,
     )  # fmt: skip
     io.write_mesh(args.output, result.mesh, binary=not args.ascii)
     report = optimization_report(result)
