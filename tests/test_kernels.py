@@ -219,14 +219,21 @@ def test_barycentrics_reproduce_the_closest_point():
         assert distance2[i] <= brute + 1e-12
 
 
+def _ordered_soup(seed, in_order):
+    """The generator, and a triangle soup's points (in spatial order if `in_order`),
+    vertices and faces."""
+    rng = np.random.default_rng(seed)
+    points, vertices, faces, _ = _triangle_soup_inputs(rng)
+    if in_order:
+        points = np.ascontiguousarray(points[spatial_order(points)])
+    return rng, points, vertices, faces
+
+
 @pytest.mark.parametrize("in_order", [False, True])
 def test_a_guessed_face_changes_no_closest_point(in_order):
     # A guess only bounds the search: any face, right or wrong, gives the same answer
     # (the soup's triangles are never equally close to a point).
-    rng = np.random.default_rng(8)
-    points, vertices, faces, _ = _triangle_soup_inputs(rng)
-    if in_order:
-        points = np.ascontiguousarray(points[spatial_order(points)])
+    rng, points, vertices, faces = _ordered_soup(8, in_order)
     plain = evaluate_kernels.closest_points_on_mesh(points, vertices, faces)
     for guess in (plain[0], rng.integers(0, faces.shape[0], size=points.shape[0])):
         guessed = evaluate_kernels.closest_points_on_mesh(points, vertices, faces, guess, in_order)
@@ -238,10 +245,7 @@ def test_a_guessed_face_changes_no_closest_point(in_order):
 def test_a_bound_finds_the_closest_face_only_where_it_is_nearer(in_order):
     # Against the unbounded search: where the closest face lies nearer than the bound it
     # is found as before; elsewhere the point gets face -1 and the squared bound.
-    rng = np.random.default_rng(9)
-    points, vertices, faces, _ = _triangle_soup_inputs(rng)
-    if in_order:
-        points = np.ascontiguousarray(points[spatial_order(points)])
+    rng, points, vertices, faces = _ordered_soup(9, in_order)
     face, bary, distance2 = evaluate_kernels.closest_points_on_mesh(points, vertices, faces)
     within = np.sqrt(distance2) * rng.choice([0.5, 2.0], size=distance2.size)
     got = evaluate_kernels.closest_points_on_mesh(
