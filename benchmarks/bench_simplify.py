@@ -16,8 +16,9 @@ takes the dense mesh to the simplified mesh's face count, and is measured the sa
 
 The figure sweeps the tolerance (a multiple of the default) on the 20k pipe and torus,
 with quadric decimation at the same face counts, phase 2 (``optimize=True``) at three
-costs of a vertex, and phase 2 within a tolerance at two. The section between ``<!-- simplify:begin -->`` and
-``<!-- simplify:end -->`` is replaced atomically (see ``_docfile.py``).
+costs of a vertex, and phase 2 within a tolerance at two. The section between
+``<!-- simplify:begin -->`` and ``<!-- simplify:end -->`` is replaced atomically (see
+``_docfile.py``).
 """
 
 from __future__ import annotations
