@@ -21,6 +21,7 @@ import numpy as np
 
 from .._kernels import optimize as _kernels
 from .._kernels._jit import inputs
+from .._unique import distinct
 from ..topology import edge_keys
 from ..types import Mesh
 from .fit import Projection
@@ -51,8 +52,9 @@ def _by_slab(owner: np.ndarray, edges: np.ndarray) -> tuple[list[np.ndarray], np
 
 def _unique_edges(state) -> np.ndarray:
     """The (E, 2) edges of the state's live faces, each once, in lexicographic order."""
-    edges = _kernels.edges_of(state)
-    return edges[np.unique(edge_keys(edges, state.V.shape[0]), return_index=True)[1]]
+    n = np.int64(state.V.shape[0])
+    keys = distinct(edge_keys(_kernels.edges_of(state), n))
+    return np.ascontiguousarray(np.column_stack([keys // n, keys % n]))
 
 
 def _by_length(state, edges: np.ndarray) -> np.ndarray:
