@@ -251,8 +251,11 @@ def optimize_mesh(
     held = {}
     if tolerance is not None:
         result_mesh, splits, strays = hold_within(result_mesh, start_mesh, tolerance)
-        held = {"tolerance": float(tolerance), "tolerance_splits": splits}
-        held["tolerance_strays"] = strays
+        held = {
+            "tolerance": float(tolerance),
+            "tolerance_splits": splits,
+            "tolerance_strays": strays,
+        }
         if strays:
             warnings.warn(
                 f"{strays} triangle(s) of phase 2 lie farther than the tolerance "
@@ -305,10 +308,9 @@ def _optimise_level(
     hold = limits is not None  # with a tolerance, the boundary stays the starting mesh's
     v, projection, _ = fit_vertices(
         x, v, faces, _edges(faces), kappa=kappa, projection=projection, min_cos=min_cos,
-        in_order=True, limits=limits, fixed=_held(faces, v, hold),
+        in_order=True, limits=limits, fixed=_boundary_vertices(faces, v) if hold else None,
     )  # fmt: skip
-    energy = _energy(v, faces, projection, kappa, c_rep)
-    history.append(_entry("fit", kappa, energy, v, faces))
+    history.append(_entry("fit", kappa, _energy(v, faces, projection, kappa, c_rep), v, faces))
     candidates = None
     for _ in range(schedule.MAX_PASSES):
         state = MeshState(
@@ -320,27 +322,25 @@ def _optimise_level(
         moved = state.to_mesh()
         v, faces = moved.vertices, moved.faces
         projection = project(x, v, faces, guess=state.point_faces, in_order=True)
-        energy = _energy(v, faces, projection, kappa, c_rep)
-        history.append(_entry("moves", kappa, energy, v, faces))
+        history.append(
+            _entry("moves", kappa, _energy(v, faces, projection, kappa, c_rep), v, faces)
+        )
         edges = _edges(faces)
         fitted, projection, _ = fit_vertices(
             x, v, faces, edges, kappa=kappa, projection=projection, min_cos=min_cos,
-            in_order=True, limits=limits, fixed=_held(faces, v, hold),
+            in_order=True, limits=limits, fixed=_boundary_vertices(faces, v) if hold else None,
         )  # fmt: skip
         moved = np.linalg.norm(fitted - v, axis=1) > schedule.MOVED_SIGMAS * sigma
         v = fitted
-        energy = _energy(v, faces, projection, kappa, c_rep)
-        history.append(_entry("fit", kappa, energy, v, faces))
+        history.append(_entry("fit", kappa, _energy(v, faces, projection, kappa, c_rep), v, faces))
         candidates = edges[moved[edges].any(axis=1)]
         if counts[:, MoveOutcome.ACCEPTED].sum() == 0 or candidates.shape[0] == 0:
             break
     return v, faces, projection
 
 
-def _held(faces: np.ndarray, v: np.ndarray, hold: bool) -> np.ndarray | None:
-    """(M,) bool: the boundary vertices of the mesh (v, faces) if `hold`, else None."""
-    if not hold:
-        return None
+def _boundary_vertices(faces: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """(M,) bool: the boundary vertices of the mesh (v, faces)."""
     fixed = np.zeros(v.shape[0], dtype=bool)
     fixed[topology.boundary_edges(faces).reshape(-1)] = True
     return fixed
