@@ -1010,22 +1010,41 @@ def try_swap_within(state, scratch, normals, i, j, min_cos):
 
 @jit
 def _push_star(state, v, queue, tail, capacity, head):
-    # Queue every edge of the faces around v, each at a random place among those waiting.
+    # Queue every edge of the faces around v once, each at a random place among those
+    # waiting: of a face (v, a, b), the edges (v, a) and (a, b), and (b, v) only where it
+    # is a boundary edge (inside, the next face around v holds it as its (v, b)).
     F, vf, deg = state.F, state.vf, state.deg
     for k in range(deg[v]):
         f = vf[v, k]
-        for c in range(3):
+        c = 0
+        while F[f, c] != v:
+            c += 1
+        a, b = F[f, (c + 1) % 3], F[f, (c + 2) % 3]
+        for e in range(3):
+            if e == 2 and _shared(state, v, b, f):
+                break
             if tail - head >= capacity:
                 return tail
             slot = tail % capacity
-            queue[slot, 0], queue[slot, 1] = F[f, c], F[f, (c + 1) % 3]
+            queue[slot, 0], queue[slot, 1] = (v, a) if e == 0 else (a, b) if e == 1 else (b, v)
             other = head + np.random.randint(0, tail - head + 1)  # noqa: NPY002 (Numba's own)
             if other != tail:
                 o = other % capacity
-                for a in range(2):
-                    queue[slot, a], queue[o, a] = queue[o, a], queue[slot, a]
+                for m in range(2):
+                    queue[slot, m], queue[o, m] = queue[o, m], queue[slot, m]
             tail += 1
     return tail
+
+
+@jit
+def _shared(state, v, b, f):
+    # Whether a face around v other than f has the corner b.
+    F, vf = state.F, state.vf
+    for k in range(state.deg[v]):
+        g = vf[v, k]
+        if g != f and _contains(F, g, b):
+            return True
+    return False
 
 
 @jit
