@@ -309,6 +309,7 @@ def _optimise_level(
     v, projection, _ = fit_vertices(
         x, v, faces, _edges(faces), kappa=kappa, projection=projection, min_cos=min_cos,
         in_order=True, limits=limits, fixed=_boundary_vertices(faces, v) if hold else None,
+        settled=schedule.MOVED_SIGMAS * sigma,
     )  # fmt: skip
     history.append(_entry("fit", kappa, _energy(v, faces, projection, kappa, c_rep), v, faces))
     candidates = None
@@ -329,6 +330,7 @@ def _optimise_level(
         fitted, projection, _ = fit_vertices(
             x, v, faces, edges, kappa=kappa, projection=projection, min_cos=min_cos,
             in_order=True, limits=limits, fixed=_boundary_vertices(faces, v) if hold else None,
+            settled=schedule.MOVED_SIGMAS * sigma,
         )  # fmt: skip
         moved = np.linalg.norm(fitted - v, axis=1) > schedule.MOVED_SIGMAS * sigma
         v = fitted

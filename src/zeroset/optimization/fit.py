@@ -102,6 +102,7 @@ def fit_vertices(
     in_order: bool = False,
     limits: np.ndarray | None = None,
     fixed: np.ndarray | None = None,
+    settled: float = 0.0,
 ) -> tuple[np.ndarray, Projection, int]:
     """Optimise the vertex positions for fixed connectivity; never raises the energy.
 
@@ -134,6 +135,8 @@ def fit_vertices(
         within it on the given mesh. Default: none.
     fixed : (M,) bool, optional
         Vertices that keep their places. Default: none.
+    settled : float
+        Stop also when a solve moves no vertex farther than this (data units).
 
     Returns
     -------
@@ -168,9 +171,10 @@ def fit_vertices(
         if not trial_energy < energy:
             break
         improvement = (energy - trial_energy) / max(energy, 1e-300)
+        step = float(np.max(np.linalg.norm(trial - vertices, axis=1), initial=0.0))
         vertices, projection, energy, folds = trial, trial_projection, trial_energy, trial_folds
         kept += 1
-        if improvement < tolerance:
+        if improvement < tolerance or step <= settled:
             break
     return vertices, projection, kept
 

@@ -26,6 +26,7 @@ MAX_DISTANCE_SIGMAS = 5.0
 #: they were folded as much before.
 MAX_FOLD_DEGREES = 60.0
 #: Passes per kappa; a level ends earlier when a pass accepts nothing or the fit after it
-#: moves no vertex by more than MOVED_SIGMAS x sigma.
+#: moves no vertex by more than MOVED_SIGMAS x sigma. A fit ends, too, at the first solve
+#: that moves no vertex by more: the passes would take it as no change.
 MAX_PASSES = 4
 MOVED_SIGMAS = 0.1
