@@ -109,6 +109,26 @@ def test_fit_lowers_the_energy_and_pulls_the_mesh_onto_the_points(rng):
     np.testing.assert_allclose(vertices[:, 2], 0.3, atol=1e-3)
 
 
+def test_a_fit_ends_at_the_first_solve_that_moves_no_vertex_farther_than_settled(rng):
+    mesh = _grid(4)  # the unit squares of [0, 4]^2
+    points, _ = sample_surface(mesh, 2000, rng=rng)
+    points[:, 2] = 0.3 + 0.5 * ((points[:, 0] - 2) ** 2 + (points[:, 1] - 2) ** 2)  # a bowl
+    edges = topology.edge_face_counts(mesh.faces)[0]
+    before = project(points, mesh.vertices, mesh.faces).distance2.sum()
+    runs = {
+        settled: fit_vertices(points, mesh.vertices, mesh.faces, edges, kappa=1e-3, settled=settled)
+        for settled in (0.0, 0.05, np.inf)
+    }
+    kept = {settled: run[2] for settled, run in runs.items()}
+    assert kept[np.inf] == 1 < kept[0.05] < kept[0.0]
+    # The last solve kept at 0.05 moved no vertex farther than that.
+    shorter = fit_vertices(
+        points, mesh.vertices, mesh.faces, edges, kappa=1e-3, max_iterations=kept[0.05] - 1
+    )[0]
+    assert np.linalg.norm(runs[0.05][0] - shorter, axis=1).max() <= 0.05
+    assert all(run[1].distance2.sum() < before for run in runs.values())
+
+
 # --------------------------------------------------------------------------- single moves
 
 
