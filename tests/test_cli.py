@@ -260,13 +260,33 @@ def test_contour_option_chooses_the_method_of_cubes(sphere_file, tmp_path, capsy
     out = tmp_path / "mesh.ply"
     assert main(["reconstruct", str(sphere_file), "-o", str(out), "--contour", "cubes"]) == 0
     printed = capsys.readouterr().out
-    assert "mesh        Method of Cubes:" in printed
+    assert re.search(r"^mesh        Method of Cubes(, simplified)?: ", printed, re.MULTILINE)
     mesh = io.read_mesh(out)
     assert topology.euler_characteristic(mesh) == 2 and topology.is_edge_manifold(mesh.faces)
     with pytest.raises(SystemExit) as exit_info:
         main(["reconstruct", str(sphere_file), "-o", str(out), "--contour", "dual"])
     assert exit_info.value.code == 2
     assert "invalid choice: 'dual'" in capsys.readouterr().err
+
+
+def test_the_summary_names_the_mesh_it_wrote(tmp_path, capsys):
+    cloud = tmp_path / "pipe.ply"
+    io.write_points(
+        cloud, sample_cylinder(4000, radius=0.25, length=1.0, noise=0.002, rng=0).points
+    )
+    for options, origin in (
+        ([], "marching cubes, simplified"),
+        (["--tolerance", "0"], "marching cubes"),
+    ):
+        out = tmp_path / f"mesh{len(options)}.ply"
+        assert main(["reconstruct", str(cloud), "-o", str(out), *options]) == 0
+        line = re.search(
+            r"^mesh        (.*): [\d,]+ vertices, ([\d,]+) triangles",
+            capsys.readouterr().out,
+            re.MULTILINE,
+        )
+        assert line.group(1) == origin
+        assert int(line.group(2).replace(",", "")) == io.read_mesh(out).n_faces
 
 
 def test_report_suffix_chooses_html(sphere_file, tmp_path):

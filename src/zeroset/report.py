@@ -190,7 +190,7 @@ def format_report(report: dict) -> str:
         + _disagreement(stats.get("orientation_disagreement"), stats.get("viewpoints_untrusted")),
         f"grid        {stats['grid_vertices']:,} vertices evaluated, "
         f"{stats['undefined_grid_vertices']:,} undefined",
-        f"mesh        {CONTOUR_NAMES[report['config']['contour']]}: "
+        f"mesh        {_mesh_origin(report)}: "
         f"{stats['vertices']:,} vertices, {stats['faces']:,} triangles, "
         f"{stats['boundary_loops']} boundary loop(s), {stats['mesh_components']} component(s), "
         f"Euler characteristic {stats['euler_characteristic']}",
@@ -232,6 +232,16 @@ def _surface_lines(stats: dict) -> list[str]:
             f"split where a triangle strayed"
         )
     return lines
+
+
+def _mesh_origin(report: dict) -> str:
+    """How the mesh written came about: the contouring, then the simplification or phase 2."""
+    origin = CONTOUR_NAMES[report["config"]["contour"]]
+    if "optimization" in report:
+        return f"{origin}, optimised by phase 2"
+    stats = report["stats"]
+    simplified = stats.get("tolerance") and stats["faces"] < stats["dense_faces"]
+    return f"{origin}, simplified" if simplified else origin
 
 
 def _rim_line(stats: dict) -> str:
