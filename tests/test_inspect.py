@@ -35,6 +35,7 @@ from zeroset.inspect._centreline import (
     MAX_FIT_VERTICES,
     _evenly,
     _pipe_along,
+    _radius_and_side,
     _straight_run,
     section_fits,
 )
@@ -298,6 +299,26 @@ def test_the_centreline_follows_the_straight_run_of_a_tee(rng):
     path = _straight_run(axis, radius=0.1)
     assert np.abs(path[:, 0]).max() < 0.05
     assert np.ptp(path[:, 2]) > 1.1
+
+
+@pytest.mark.parametrize("sides, rings", [(12, 3), (16, 3), (24, 5)])
+def test_the_first_radius_holds_on_a_tube_of_long_triangles(sides, rings):
+    # A prism of `sides` facets in `rings` - 1 bands of 1 or 0.5 m, as phase 2 leaves a
+    # pipe: three triangles reach farther than the radius, where the pairs of samples no
+    # longer lie in a tangent plane (the guess was 0.71 m on 16 facets).
+    angle = np.arange(sides) * 2 * np.pi / sides
+    z = np.linspace(0.0, 2.0, rings)
+    t, h = np.meshgrid(angle, z, indexing="ij")
+    vertices = np.stack([0.25 * np.cos(t), 0.25 * np.sin(t), h], -1).reshape(-1, 3)
+    i, j = np.meshgrid(np.arange(sides), np.arange(rings - 1), indexing="ij")
+    a, b = i * rings + j, (i + 1) % sides * rings + j
+    faces = np.concatenate(
+        [np.stack(c, -1).reshape(-1, 3) for c in ((a, b, b + 1), (a, b + 1, a + 1))]
+    )
+    radius, side = _radius_and_side(Mesh(vertices=vertices, faces=faces), np.random.default_rng(0))
+    inscribed = 0.25 * np.cos(np.pi / sides)
+    assert inscribed - 0.01 < radius < 0.25 + 0.01
+    assert side == -1.0  # the facets' normals point away from the axis
 
 
 @pytest.mark.slow

@@ -507,20 +507,38 @@ def _radius_and_side(mesh: Mesh, rng: np.random.Generator) -> tuple[float, float
     Over pairs of points sampled on the surface a few triangles apart, the change of the
     face normal along the step between them, ``sum(dn . dp) / sum(|dp|^2)``, is the mean
     curvature H (on a tube ``+-1 / 2r``); unlike a curvature per vertex it does not depend
-    on the triangles being small or even.
+    on the triangles being small or even. It takes the pairs' steps to lie evenly in the
+    tangent plane, which holds while they are short against the radius: where three
+    triangles reach farther than half the radius found (the few long triangles of phase
+    2), the reach is cut to that half, judged on a tenth of the samples, until it holds.
     """
     points, normals = sample_surface(mesh, CURVATURE_SAMPLES, rng=rng)
     v, f = mesh.vertices, mesh.faces
     reach = 3.0 * float(np.mean(np.linalg.norm(v[f[:, 1]] - v[f[:, 0]], axis=1)))
+    few = CURVATURE_SAMPLES // 10  # the samples are random: the first are a random tenth
+    while (first := _mean_curvature(points[:few], normals[:few], reach)) is not None:
+        if 0.5 / abs(first) >= 2.0 * reach:
+            break
+        reach = 0.25 / abs(first)
+    curvature = _mean_curvature(points, normals, reach)
+    if curvature is None:
+        raise InputError("the mesh is too small to fit a pipe to")
+    return 0.5 / abs(curvature), (1.0 if curvature < 0 else -1.0)
+
+
+def _mean_curvature(points: np.ndarray, normals: np.ndarray, reach: float) -> float | None:
+    """``sum(dn . dp) / sum(|dp|^2)`` over the pairs of `points` (N, 3) with unit
+    `normals` (N, 3) closer than `reach` (see `_radius_and_side`); None where fewer than
+    32 pairs are."""
     pairs = cKDTree(points).query_pairs(reach, output_type="ndarray")
     if pairs.shape[0] < 32:
-        raise InputError("the mesh is too small to fit a pipe to")
+        return None
     step = points[pairs[:, 1]] - points[pairs[:, 0]]
     turn = normals[pairs[:, 1]] - normals[pairs[:, 0]]
     curvature = float(np.einsum("ij,ij->", turn, step) / np.einsum("ij,ij->", step, step))
     if not np.isfinite(curvature) or curvature == 0.0:
         raise InputError("the mesh is flat: no pipe wall to fit")
-    return 0.5 / abs(curvature), (1.0 if curvature < 0 else -1.0)
+    return curvature
 
 
 def _straight_run(centres: np.ndarray, radius: float, stations=None) -> np.ndarray:
