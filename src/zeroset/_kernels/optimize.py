@@ -1009,10 +1009,11 @@ def try_swap_within(state, scratch, normals, i, j, min_cos):
 
 
 @jit
-def _push_star(state, v, queue, tail, capacity, head):
+def _push_star(state, v, queue, tail, capacity, head, probe):
     # Queue every edge of the faces around v once, each at a random place among those
     # waiting: of a face (v, a, b), the edges (v, a) and (a, b), and (b, v) only where it
-    # is a boundary edge (inside, the next face around v holds it as its (v, b)).
+    # is a boundary edge (inside, the next face around v holds it as its (v, b)). `probe`
+    # is scratch for `_edge_faces`.
     F, vf, deg = state.F, state.vf, state.deg
     for k in range(deg[v]):
         f = vf[v, k]
@@ -1021,7 +1022,7 @@ def _push_star(state, v, queue, tail, capacity, head):
             c += 1
         a, b = F[f, (c + 1) % 3], F[f, (c + 2) % 3]
         for e in range(3):
-            if e == 2 and _shared(state, v, b, f):
+            if e == 2 and _edge_faces(state, v, b, probe) > 1:
                 break
             if tail - head >= capacity:
                 return tail
@@ -1034,17 +1035,6 @@ def _push_star(state, v, queue, tail, capacity, head):
                     queue[slot, m], queue[o, m] = queue[o, m], queue[slot, m]
             tail += 1
     return tail
-
-
-@jit
-def _shared(state, v, b, f):
-    # Whether a face around v other than f has the corner b.
-    F, vf = state.F, state.vf
-    for k in range(state.deg[v]):
-        g = vf[v, k]
-        if g != f and _contains(F, g, b):
-            return True
-    return False
 
 
 @jit
@@ -1117,14 +1107,14 @@ def run_pass(
         tally[COLLAPSE, outcome] += 1
         if outcome == ACCEPTED:
             total += result[0]
-            tail = _push_star(state, i, queue, tail, capacity, head)
+            tail = _push_star(state, i, queue, tail, capacity, head, scratch.probe)
             continue
         outcome = try_swap(state, scratch, i, j, kappa, c_rep, min_cos, unforced, hold, result)
         tally[SWAP, outcome] += 1
         if outcome == ACCEPTED:
             total += result[0]
-            tail = _push_star(state, i, queue, tail, capacity, head)
-            tail = _push_star(state, j, queue, tail, capacity, head)
+            tail = _push_star(state, i, queue, tail, capacity, head, scratch.probe)
+            tail = _push_star(state, j, queue, tail, capacity, head, scratch.probe)
             continue
         outcome = try_split(state, scratch, i, j, kappa, c_rep, min_cos, unforced, hold, result)
         tally[SPLIT, outcome] += 1
@@ -1133,7 +1123,7 @@ def run_pass(
             s = int(result[1])
             if label >= 0:
                 owner[s] = label
-            tail = _push_star(state, s, queue, tail, capacity, head)
+            tail = _push_star(state, s, queue, tail, capacity, head, scratch.probe)
     return total, n_deferred
 
 
