@@ -30,7 +30,7 @@ from ._unique import distinct
 from .errors import InputError
 from .evaluate import closest_on_arrays
 from .neighbours import spatial_order
-from .optimization import MeshState, Projection, on_itself
+from .optimization import MeshState, on_itself
 from .surface import Surface
 from .thresholds import MAX_FOLD_DEGREES_SIMPLIFY, SAMPLE_MARGIN, UNCERTAINTIES
 from .topology import (
@@ -120,10 +120,7 @@ def simplify_mesh(mesh: Mesh, tolerance: float) -> tuple[Mesh, dict]:
     normals /= np.maximum(np.linalg.norm(normals, axis=1), 1e-300)[:, None]
     # In spatial order, the samples of neighbouring faces lie near in memory.
     order = spatial_order(samples)
-    samples, normals = samples[order], normals[order]
-    itself = Projection(
-        face=itself.face[order], bary=itself.bary[order], distance2=itself.distance2[order]
-    )
+    samples, normals, itself = samples[order], normals[order], itself.take(order)
     await_simplify_kernels()  # on a fresh install, while a second process compiles them
     state = MeshState(
         mesh.vertices, mesh.faces, samples, itself,

@@ -195,7 +195,7 @@ def optimize_mesh(
         raise InputError(
             f"only {x.shape[0]} points lie within max_distance={cutoff * scale:.4g} of the mesh"
         )
-    projection = _subset(start, keep)
+    projection = start.take(keep)
     n_data, limits = x.shape[0], None
     if tolerance is not None:
         # Phase 1 has averaged the points' noise out: fit its surface, the starting mesh's
@@ -305,11 +305,12 @@ def _optimise_level(
     evaluated as they were).
     """
     min_cos = float(np.cos(np.radians(max_fold)))
+    still = schedule.MOVED_SIGMAS * sigma  # a smaller step is no change to the passes
     hold = limits is not None  # with a tolerance, the boundary stays the starting mesh's
     v, projection, _ = fit_vertices(
         x, v, faces, _edges(faces), kappa=kappa, projection=projection, min_cos=min_cos,
         in_order=True, limits=limits, fixed=_boundary_vertices(faces, v) if hold else None,
-        settled=schedule.MOVED_SIGMAS * sigma,
+        settled=still,
     )  # fmt: skip
     history.append(_entry("fit", kappa, _energy(v, faces, projection, kappa, c_rep), v, faces))
     candidates = None
@@ -330,9 +331,9 @@ def _optimise_level(
         fitted, projection, _ = fit_vertices(
             x, v, faces, edges, kappa=kappa, projection=projection, min_cos=min_cos,
             in_order=True, limits=limits, fixed=_boundary_vertices(faces, v) if hold else None,
-            settled=schedule.MOVED_SIGMAS * sigma,
+            settled=still,
         )  # fmt: skip
-        moved = np.linalg.norm(fitted - v, axis=1) > schedule.MOVED_SIGMAS * sigma
+        moved = np.linalg.norm(fitted - v, axis=1) > still
         v = fitted
         history.append(_entry("fit", kappa, _energy(v, faces, projection, kappa, c_rep), v, faces))
         candidates = edges[moved[edges].any(axis=1)]
@@ -376,13 +377,7 @@ def _samples(v: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, Projection]:
     order, and their projection onto it."""
     samples, itself = on_itself(v, faces)
     order = spatial_order(samples)
-    return np.ascontiguousarray(samples[order]), _subset(itself, order)
-
-
-def _subset(projection: Projection, keep: np.ndarray) -> Projection:
-    return Projection(
-        face=projection.face[keep], bary=projection.bary[keep], distance2=projection.distance2[keep]
-    )
+    return np.ascontiguousarray(samples[order]), itself.take(order)
 
 
 def _check_mesh(mesh: Mesh) -> tuple[np.ndarray, np.ndarray]:

@@ -46,6 +46,12 @@ class Projection:
     bary: np.ndarray
     distance2: np.ndarray
 
+    def take(self, rows) -> Projection:
+        """The projection of the points `rows` (indices or a mask) only, in that order."""
+        return Projection(
+            face=self.face[rows], bary=self.bary[rows], distance2=self.distance2[rows]
+        )
+
 
 def project(
     points: np.ndarray,
