@@ -25,6 +25,7 @@ from zeroset.evaluate import points_to_mesh_distance
 from zeroset.neighbours import spatial_order
 from zeroset.stages import choose_parameters
 from zeroset.synthetic import sample_sphere, sample_tee, sample_torus, scan_pipe
+from zeroset.tile_output import read_tile_meshes
 from zeroset.tiles import _estimate_sampled, dask_client, plan_tiles, reconstruct_tiled
 
 
@@ -44,6 +45,14 @@ def _same_mesh(tiled, untiled):
     assert tiled.n_vertices == untiled.n_vertices and tiled.n_faces == untiled.n_faces
     np.testing.assert_allclose(tiled.vertices, untiled.vertices, rtol=0, atol=1e-9)
     np.testing.assert_array_equal(tiled.faces, untiled.faces)
+
+
+def _face_rows(faces):
+    """(F, 3) each face from its least vertex, orientation kept, the rows sorted: the same
+    for two lists of the same faces in any order."""
+    turn = np.argmin(faces, axis=1)
+    faces = np.take_along_axis(faces, (turn[:, None] + np.arange(3)) % 3, axis=1)
+    return faces[np.lexsort(faces.T[::-1])]
 
 
 def _wavy_sheet(n, seed):
@@ -173,6 +182,25 @@ def test_cli_tiles_from_a_file_on_a_scheduler(client, tmp_path, capsys):
     stats = json.loads(report.read_text())["stats"]
     assert stats["tile_grid"] == [2, 2, 1] and len(stats["worker_peak_mib"]) >= 1
     assert "tiles       4 (2x2x1)" in capsys.readouterr().out
+
+
+@pytest.mark.slow
+def test_cli_per_tile_output_reloads_into_the_one_file_mesh(client, tmp_path, capsys):
+    path = io.write_points(tmp_path / "torus.ply", sample_torus(30_000, noise=0.005, rng=5).points)
+    common = [str(path), "--tiles", "2x2x1", "--scheduler", client.scheduler.address]
+    assert main(["reconstruct", *common, "-o", str(tmp_path / "one.ply")]) == 0
+    assert main(["reconstruct", *common, "-o", str(tmp_path / "tiles"), "--per-tile"]) == 0
+    assert "one file a tile, and tiles.json" in capsys.readouterr().out
+    one, tiled = io.read_mesh(tmp_path / "one.ply"), read_tile_meshes(tmp_path / "tiles")
+    assert (tiled.n_vertices, tiled.n_faces) == (one.n_vertices, one.n_faces)
+    # The same vertices, and the same faces once the vertices are matched.
+    order_one, order_tiled = np.lexsort(one.vertices.T), np.lexsort(tiled.vertices.T)
+    np.testing.assert_array_equal(one.vertices[order_one], tiled.vertices[order_tiled])
+    rename = np.empty(tiled.n_vertices, dtype=np.int64)
+    rename[order_tiled] = order_one
+    np.testing.assert_array_equal(_face_rows(rename[tiled.faces]), _face_rows(one.faces))
+    manifest = json.loads((tmp_path / "tiles" / "tiles.json").read_text())
+    assert manifest["grid"] == [2, 2, 1] and len(manifest["seams"]) >= 4
 
 
 @pytest.mark.parametrize(

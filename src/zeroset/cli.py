@@ -178,6 +178,12 @@ def _reconstruct_command(commands, parents) -> None:
         help="with --tiles: leave out a tile whose fit fails, with a warning (default: stop)",
     )
     parser.add_argument(
+        "--per-tile",
+        action="store_true",
+        help="with --tiles: -o names a folder, which gets one PLY mesh per tile and a "
+        "manifest tiles.json of the tiles, their boxes and seams (default: one file)",
+    )
+    parser.add_argument(
         "--report",
         type=Path,
         help="write parameters, counts and timings: .json, or .html with a 3D viewer",
@@ -544,12 +550,15 @@ def _run_reconstruct(args: argparse.Namespace) -> int:
     from .errors import InputError
     from .pipeline import reconstruct
 
+    if args.per_tile:
+        _check_tile_folder(args)
     _check_outputs(
-        [args.output, args.report, args.preview, *_inspection_files(args.inspect)],
+        [None if args.per_tile else args.output, args.report, args.preview,
+         *_inspection_files(args.inspect)],
         [*args.input, args.poses],
         force=args.force,
-        mesh=args.output,
-    )
+        mesh=None if args.per_tile else args.output,
+    )  # fmt: skip
     if args.preview is not None:  # a missing extra stops the run here, not after it
         from .viz import picture_modules
 
@@ -709,6 +718,22 @@ def _run_optimize(args: argparse.Namespace) -> int:
         )
         print(f"mesh        written to {args.output}")
     return 0
+
+
+def _check_tile_folder(args: argparse.Namespace) -> None:
+    """Refuse, before any work, a --per-tile output folder that cannot take the tiles."""
+    from .errors import InputError
+    from .tile_output import MANIFEST
+
+    folder = args.output
+    if args.tiles is None:
+        raise InputError("--per-tile goes with --tiles")
+    if folder.exists() and not folder.is_dir():
+        raise InputError(f"{folder}: is a file; --per-tile writes into a folder")
+    if not folder.parent.is_dir():
+        raise InputError(f"{folder}: directory {folder.parent} does not exist")
+    if (folder / MANIFEST).exists() and not args.force:
+        raise InputError(f"{folder}: holds a tiled mesh ({MANIFEST}); add --force to replace it")
 
 
 def _check_outputs(
@@ -1080,7 +1105,16 @@ def _finish(
     from .htmlreport import write_html_report
     from .report import format_report, reconstruction_report
 
-    io.write_mesh(mesh_path, result.mesh, binary=not getattr(args, "ascii", False))
+    binary = not getattr(args, "ascii", False)
+    if getattr(args, "per_tile", False):
+        from .tile_output import MANIFEST, write_tile_meshes
+
+        write_tile_meshes(mesh_path, result.mesh, result.tiles, result.offset,
+                          result.parameters.cube_size, binary=binary)  # fmt: skip
+        written = f"{mesh_path}, one file a tile, and {MANIFEST}"
+    else:
+        io.write_mesh(mesh_path, result.mesh, binary=binary)
+        written = mesh_path
     report = reconstruction_report(
         result, source=source, points=points, reading=reading, registration=registration
     )
@@ -1112,5 +1146,5 @@ def _finish(
             print(f"zeroset: no preview picture: {error}", file=sys.stderr)
     if not args.quiet:
         print(format_report(report))
-        print(f"mesh        written to {mesh_path}")
+        print(f"mesh        written to {written}")
     return 0
