@@ -23,7 +23,15 @@ from ._unique import distinct
 from .errors import InputError
 from .types import Mesh
 
-__all__ = ["FORMAT", "MANIFEST", "face_tiles", "read_tile_meshes", "write_tile_meshes"]
+__all__ = [
+    "FORMAT",
+    "MANIFEST",
+    "cut",
+    "face_tiles",
+    "read_tile_meshes",
+    "weld",
+    "write_tile_meshes",
+]
 
 #: The manifest's file name in the output folder.
 MANIFEST = "tiles.json"
@@ -65,20 +73,17 @@ def write_tile_meshes(folder, mesh: Mesh, tiles, offset, cube_size: float, *, bi
     if not folder.parent.is_dir():
         raise InputError(f"{folder}: directory {folder.parent} does not exist")
     folder.mkdir(exist_ok=True)
-    owner = face_tiles(mesh, tiles, offset, cube_size)
     entries, users = [], []
-    for position, tile in enumerate(tiles):
-        faces = mesh.faces[owner == position]
+    pieces = cut(mesh, face_tiles(mesh, tiles, offset, cube_size), len(tiles))
+    for position, (tile, (piece, used)) in enumerate(zip(tiles, pieces, strict=True)):
         entry = {"index": list(tile.index), "owned": _owned_box(tile, offset, cube_size)}
-        if faces.shape[0] == 0:
+        if piece is None:
             entries.append(entry | {"file": None, "vertices": 0, "faces": 0, "bounds": None})
             continue
-        used = distinct(faces)
         name = "tile-{}-{}-{}.ply".format(*tile.index)
-        piece = Mesh(vertices=mesh.vertices[used], faces=np.searchsorted(used, faces))
         io.write_mesh(folder / name, piece, binary=binary)
         bounds = np.r_[piece.vertices.min(axis=0), piece.vertices.max(axis=0)]
-        sizes = {"vertices": int(used.size), "faces": int(faces.shape[0])}
+        sizes = {"vertices": piece.n_vertices, "faces": piece.n_faces}
         entries.append(entry | {"file": name, **sizes, "bounds": bounds.tolist()})
         users.append(np.column_stack([used, np.full(used.size, position)]))
     manifest = {
@@ -125,24 +130,56 @@ def read_tile_meshes(path) -> Mesh:
             positions.append(position)
     if not pieces:
         raise InputError(f"{manifest_path}: no tile holds a face")
+    # Vertices of the same coordinates are one: the seams' copies of a vertex.
+    vertices = np.concatenate([piece.vertices for piece in pieces])
+    same = np.unique(vertices, axis=0, return_inverse=True)[1].reshape(-1)
+    cuts = np.cumsum([piece.n_vertices for piece in pieces])[:-1]
+    mesh, index = weld(pieces, np.split(same, cuts))
+    tile_of = np.repeat(positions, [piece.n_vertices for piece in pieces])
+    seams = _seams(np.column_stack([index, tile_of]))
+    if (mesh.n_vertices, mesh.n_faces, seams) != stated:
+        raise InputError(
+            f"{manifest_path}: the tiles weld into {mesh.n_vertices} vertices, {mesh.n_faces} "
+            f"faces and {len(seams)} seams; the manifest states {stated[0]}, {stated[1]} and "
+            f"{len(stated[2])} (a tile's file was changed, or two vertices coincide)"
+        )
+    return mesh
+
+
+def cut(mesh: Mesh, owner: np.ndarray, n_pieces: int) -> list:
+    """For each piece k < `n_pieces`, (Mesh of the faces whose `owner` (F,) is k, with the
+    vertices they use; those vertices' indices in `mesh`), or (None, None) where it has
+    no face."""
+    pieces = []
+    for k in range(n_pieces):
+        faces = mesh.faces[owner == k]
+        if faces.shape[0] == 0:
+            pieces.append((None, None))
+            continue
+        used = distinct(faces)
+        piece = Mesh(vertices=mesh.vertices[used], faces=np.searchsorted(used, faces))
+        pieces.append((piece, used))
+    return pieces
+
+
+def weld(pieces: list, keys: list) -> tuple[Mesh, np.ndarray]:
+    """One mesh of the meshes `pieces`, their vertices of the same key merged, in the
+    order they first appear; `keys` holds an int64 array (V_k,) for each piece, -1 for a
+    vertex of its own. Returns the mesh and the index (V,) in it of every piece's vertex
+    in turn."""
     starts = np.cumsum([0] + [piece.n_vertices for piece in pieces])
     vertices = np.concatenate([piece.vertices for piece in pieces])
     shifted = zip(pieces, starts[:-1], strict=True)
     faces = np.concatenate([piece.faces + start for piece, start in shifted])
-    _, first, inverse = np.unique(vertices, axis=0, return_index=True, return_inverse=True)
-    order = np.argsort(first)  # the welded vertices in the order they first appear
+    key = np.concatenate(keys)
+    own = key < 0
+    key[own] = key.max(initial=-1) + 1 + np.arange(np.count_nonzero(own))
+    _, first, inverse = np.unique(key, return_index=True, return_inverse=True)
+    order = np.argsort(first)
     rank = np.empty_like(order)
     rank[order] = np.arange(order.size)
-    index = rank[inverse.reshape(-1)]
-    tile_of = np.repeat(positions, np.diff(starts))
-    seams = _seams(np.column_stack([index, tile_of]))
-    if (order.size, faces.shape[0], seams) != stated:
-        raise InputError(
-            f"{manifest_path}: the tiles weld into {order.size} vertices, {faces.shape[0]} "
-            f"faces and {len(seams)} seams; the manifest states {stated[0]}, {stated[1]} and "
-            f"{len(stated[2])} (a tile's file was changed, or two vertices coincide)"
-        )
-    return Mesh(vertices=vertices[first[order]], faces=index[faces])
+    index = rank[inverse]
+    return Mesh(vertices=vertices[first[order]], faces=index[faces]), index
 
 
 def _owned_box(tile, offset, cube_size: float) -> list:
