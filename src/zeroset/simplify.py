@@ -26,21 +26,22 @@ from __future__ import annotations
 import numpy as np
 
 from ._kernels._ahead import await_simplify_kernels
+from ._kernels.evaluate import closest_points_on_mesh
 from ._unique import distinct
 from .errors import InputError
 from .evaluate import closest_on_arrays
 from .neighbours import spatial_order
-from .optimization import MeshState, on_itself
+from .optimization import MeshState, Projection, on_itself
 from .surface import Surface
 from .thresholds import MAX_FOLD_DEGREES_SIMPLIFY, SAMPLE_MARGIN, UNCERTAINTIES
 from .topology import (
-    boundary_loops,
+    boundary_edges,
     face_area_vectors,
     is_consistently_oriented,
     is_edge_manifold,
 )
 from .types import Mesh
-from .within import hold_within
+from .within import dense_points, hold_within
 
 __all__ = ["choose_tolerance", "simplify_mesh", "unbias"]
 
@@ -73,7 +74,9 @@ def choose_tolerance(
     return tolerance, f"tolerance = {tolerance:.4g}: {note}"
 
 
-def simplify_mesh(mesh: Mesh, tolerance: float) -> tuple[Mesh, dict]:
+def simplify_mesh(
+    mesh: Mesh, tolerance: float, *, reference: Mesh | None = None, under=None
+) -> tuple[Mesh, dict]:
     """Few triangles, each within `tolerance` of `mesh` over its whole area.
 
     Parameters
@@ -83,13 +86,22 @@ def simplify_mesh(mesh: Mesh, tolerance: float) -> tuple[Mesh, dict]:
     tolerance : float
         Largest distance allowed between the two meshes, both ways, in data units; 0
         returns `mesh` as it is.
+    reference : Mesh, optional
+        The dense mesh to stay within `tolerance` of, where `mesh` is already simplified
+        from it (a band across the tiles' seams, `zeroset.tiles`); `mesh` itself by
+        default.
+    under : (F_ref,) bool, optional
+        With `reference`: its faces that lie under `mesh`, whose vertices and centroids
+        within the margin (``SAMPLE_MARGIN`` times `tolerance`) of `mesh` are the samples;
+        the others only continue the reference past `mesh`'s edges, so that triangles
+        there are measured against a surface that goes on. All by default.
 
     Returns
     -------
     mesh : Mesh
-        The same boundary loops, edge-manifold and oriented like `mesh`, without the
-        vertices of no face; `mesh` itself (less those vertices) where no fewer triangles
-        stay within the tolerance.
+        The same boundary loops, vertex for vertex, edge-manifold and oriented like
+        `mesh`, without the vertices of no face; `mesh` itself (less those vertices) where
+        no fewer triangles stay within the tolerance.
     counts : dict
         ``simplify_collapses``; ``simplify_splits``, edges split where a triangle strayed;
         ``simplify_strays``, triangles still farther than the tolerance after the last
@@ -112,29 +124,62 @@ def simplify_mesh(mesh: Mesh, tolerance: float) -> tuple[Mesh, dict]:
     used = distinct(mesh.faces)
     if used.size < mesh.n_vertices:  # a vertex of no face is no sample of the surface
         mesh = Mesh(vertices=mesh.vertices[used], faces=np.searchsorted(used, mesh.faces))
-    samples, itself = on_itself(mesh.vertices, mesh.faces)
-    area_vectors = face_area_vectors(mesh.vertices, mesh.faces)
-    normals = np.concatenate(
-        [_vertex_normals(mesh.faces, mesh.n_vertices, area_vectors), area_vectors]
-    )
-    normals /= np.maximum(np.linalg.norm(normals, axis=1), 1e-300)[:, None]
+    if reference is None:
+        samples, on_mesh, normals = _own_samples(mesh)
+        points = None
+    else:
+        under = np.ones(reference.n_faces, dtype=bool) if under is None else under
+        reach = SAMPLE_MARGIN * tolerance
+        samples, on_mesh, normals = _samples_of(reference, reference.faces[under], mesh, reach)
+        points = dense_points(reference, reference.faces[under])
+        points = points[closest_on_arrays(points, mesh.vertices, mesh.faces)[2] <= reach]
     # In spatial order, the samples of neighbouring faces lie near in memory.
     order = spatial_order(samples)
-    samples, normals, itself = samples[order], normals[order], itself.take(order)
+    samples, normals, on_mesh = samples[order], normals[order], on_mesh.take(order)
     await_simplify_kernels()  # on a fresh install, while a second process compiles them
     state = MeshState(
-        mesh.vertices, mesh.faces, samples, itself,
+        mesh.vertices, mesh.faces, samples, on_mesh,
         kappa=0.0, c_rep=0.0, max_fold_degrees=MAX_FOLD_DEGREES_SIMPLIFY, spare=0.0,
         limits=np.full(samples.shape[0], SAMPLE_MARGIN * tolerance),
     )  # fmt: skip
     counts["simplify_collapses"] = state.collapse_within(normals)
     simple = unbias(state.to_mesh(), samples)
     simple, counts["simplify_splits"], counts["simplify_strays"] = hold_within(
-        simple, mesh, tolerance
-    )
+        simple, mesh if reference is None else reference, tolerance,
+        split_boundary=False, points=points,
+    )  # fmt: skip
     if simple.n_faces >= mesh.n_faces:  # a tolerance too fine for the surface's bends
         return mesh, dict.fromkeys(counts, 0)
     return simple, counts
+
+
+def _own_samples(mesh: Mesh) -> tuple[np.ndarray, Projection, np.ndarray]:
+    """The samples of a dense `mesh`: its vertices and centroids (N, 3), on its own faces,
+    and their unit normals (N, 3)."""
+    samples, itself = on_itself(mesh.vertices, mesh.faces)
+    area_vectors = face_area_vectors(mesh.vertices, mesh.faces)
+    normals = np.concatenate(
+        [_vertex_normals(mesh.faces, mesh.n_vertices, area_vectors), area_vectors]
+    )
+    return samples, itself, normals / np.maximum(np.linalg.norm(normals, axis=1), 1e-300)[:, None]
+
+
+def _samples_of(reference: Mesh, faces: np.ndarray, mesh: Mesh, reach: float):
+    """The samples of the `faces` (F', 3) of `reference`: their vertices and centroids
+    (N, 3) within `reach` of `mesh`, projected onto its closest faces, and their unit
+    normals (N, 3). Where `mesh` was simplified from `reference` within `reach`, one
+    farther lies past its edge, closer to the faces around it."""
+    area_vectors = face_area_vectors(reference.vertices, faces)
+    corners = distinct(faces)
+    normals = np.concatenate(
+        [_vertex_normals(faces, reference.n_vertices, area_vectors)[corners], area_vectors]
+    )
+    samples = np.concatenate([reference.vertices[corners], reference.vertices[faces].mean(axis=1)])
+    face, bary, distance2 = closest_points_on_mesh(samples, mesh.vertices, mesh.faces)
+    near = distance2 <= reach**2
+    on_mesh = Projection(face=face[near], bary=bary[near], distance2=distance2[near])
+    normals = normals[near] / np.maximum(np.linalg.norm(normals[near], axis=1), 1e-300)[:, None]
+    return samples[near], on_mesh, normals
 
 
 def unbias(mesh: Mesh, samples: np.ndarray) -> Mesh:
@@ -159,7 +204,7 @@ def unbias(mesh: Mesh, samples: np.ndarray) -> Mesh:
     vertex_normals = _vertex_normals(faces, mesh.n_vertices, area_vectors)
     vertex_normals /= np.maximum(np.linalg.norm(vertex_normals, axis=1), 1e-300)[:, None]
     shift /= np.maximum(weight, 1e-300)
-    shift[np.concatenate([np.zeros(0, dtype=np.int64), *boundary_loops(faces)])] = 0.0
+    shift[boundary_edges(faces).ravel()] = 0.0
     return Mesh(vertices=vertices + shift[:, None] * vertex_normals, faces=faces)
 
 

@@ -603,12 +603,15 @@ def refine(mesh: Mesh, surface: Surface, parameters: Parameters, config) -> tupl
     return refine_mesh(mesh, surface, noise=parameters.noise, levels=config.refine_levels)
 
 
-def simplify(mesh: Mesh, surface: Surface, parameters: Parameters, config):
+def simplify(mesh: Mesh, surface: Surface, parameters: Parameters, config, *, how=simplify_mesh):
     """Stage "simplify": few triangles within the tolerance of the dense `mesh`
-    (`zeroset.simplify`), the tolerance chosen from the `surface` unless given."""
+    (`zeroset.simplify`), the tolerance chosen from the `surface` unless given.
+
+    `how(mesh, tolerance)` returns the mesh and `simplify_mesh`'s counts; the tiles pass
+    one that simplifies a tile at a time (`zeroset.tiles`)."""
     chord = CHORD_NOISE * parameters.noise  # R45: the sag the dense chords may have
     tolerance, note = choose_tolerance(surface, parameters.quadric_noise, chord, config.tolerance)
-    simple, counts = simplify_mesh(mesh, tolerance)
+    simple, counts = how(mesh, tolerance)
     return simple, {
         "tolerance": tolerance,
         "tolerance_note": note,

@@ -5,7 +5,8 @@ points (its box and a halo around it, straight from the file), fits and orients 
 planes, and contours only the cubes it owns. Tiles agree on the sign of their normals where
 their halos overlap, and the pieces are welded by the global keys of the lattice edges
 their vertices lie on: two tiles compute the vertex of a shared edge from the same corner
-values, so the welded mesh has no seam.
+values, so the welded mesh has no seam. The few-triangle simplification runs a tile at a
+time too, then once more across the seams (`_simplify_in_tiles`).
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ import time
 import warnings
 from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
+from functools import partial
 
 import numpy as np
 
@@ -28,11 +30,13 @@ from ._validate import as_points
 from .config import ReconstructionConfig
 from .contour import keyed_marching_cubes
 from .errors import InputError, ReconstructionError, SurfaceWarning
+from .evaluate import closest_points_on_mesh
 from .neighbours import build_tree, query_workers, spatial_order
 from .orientation import agree_parts, part_extremes
 from .parameters import neighbours_read
 from .prepare import CHUNK_POINTS
 from .prepare import crop as inside
+from .simplify import simplify_mesh
 from .stages import (
     DataSupport,
     FittedPlanes,
@@ -50,7 +54,8 @@ from .stages import (
 from .stats import add_counts, declared
 from .surface import Surface, surface_kind
 from .thresholds import RADIUS_CAP
-from .topology import is_consistently_oriented, is_edge_manifold
+from .tile_output import cut, face_tiles, weld
+from .topology import boundary_edges, is_consistently_oriented, is_edge_manifold
 from .types import Mesh, Parameters
 
 __all__ = [
@@ -247,7 +252,8 @@ class TiledReconstruction:
         worker process, by address); the welded mesh's counts.
     timings : dict
         Wall-clock seconds of each pass ("bounds", "parameters", "fit", "contour", "weld"),
-        then of each stage run on the welded mesh ("repair", "rim", "refine").
+        then of each stage run on the welded mesh ("repair", "rim", "refine"), and of
+        "simplify", its tasks a tile at a time and the band across the seams.
     """
 
     mesh: Mesh
@@ -477,7 +483,8 @@ def reconstruct_tiled(
     support = DataSupport.concatenate([piece.support for piece in pieces])
     mesh = finish(mesh, support, surface, parameters, config, stages)
     if surface.smooth:
-        mesh = stages.run("simplify", simplify, mesh, surface, parameters, config)
+        in_tiles = partial(_simplify_in_tiles, client, plan, parameters.cube_size, progress)
+        mesh = stages.run("simplify", simplify, mesh, surface, parameters, config, how=in_tiles)
     timings.update(stages.timings)
     add_counts(stats, stages.counts)
     mesh = mesh.translated(offset)
@@ -497,6 +504,91 @@ def reconstruct_tiled(
         stats=declared(stats),
         timings=timings,
     )
+
+
+def _simplify_in_tiles(
+    client, plan: list[Tile], cube_size: float, progress: bool, dense: Mesh, tolerance: float
+) -> tuple[Mesh, dict]:
+    """`zeroset.simplify.simplify_mesh` of the welded `dense` mesh (local frame) a tile at
+    a time, then across the seams.
+
+    Each tile's faces (`zeroset.tile_output.face_tiles`) are simplified by a task of their
+    own, their boundary kept vertex for vertex, so the pieces weld where they met
+    (`_simplify_piece`). Along the seams the pieces then hold the dense mesh's vertices;
+    the band of the welded mesh around them (the faces within two rings of a seam vertex)
+    is simplified again, against the dense faces beneath it (those whose centroids lie
+    closest to one of its faces), its own boundary kept. Returns the mesh and the counts.
+    """
+    if tolerance == 0.0:  # the dense mesh as it is, in its order
+        return simplify_mesh(dense, tolerance)
+    owner = face_tiles(dense, plan, np.zeros(3), cube_size)
+    pieces = cut(dense, owner, len(plan))
+    kept = [k for k, (piece, _) in enumerate(pieces) if piece is not None]
+    futures = [
+        client.submit(_simplify_piece, client.scatter(pieces[k][0]), pieces[k][1], tolerance,
+                      pure=False)
+        for k in kept
+    ]  # fmt: skip
+    done = _gather(client, futures, "simplifying", progress)
+    counts: dict = {}
+    for _, _, _, piece_counts in done:
+        add_counts(counts, piece_counts)
+    welded, index = weld([simple for simple, *_ in done], [keys for _, keys, *_ in done])
+    # The welded face under each dense face: its piece's faces follow the earlier pieces'.
+    starts = np.cumsum([0] + [simple.n_faces for simple, *_ in done])
+    under = np.empty(dense.n_faces, dtype=np.int64)
+    for k, (_, _, below, _), start in zip(kept, done, starts[:-1], strict=True):
+        under[owner == k] = start + below
+    # Seam vertices: those of two pieces or more.
+    seam = np.bincount(index, minlength=welded.n_vertices) > 1
+    if not seam.any():
+        return welded, counts
+    band = _rings(welded.faces, seam, 2)
+    reach = _rings(welded.faces, seam, 3)  # one ring more: the reference goes on past it
+    beneath = reach[under]
+    ((reference, _),) = cut(dense, np.where(beneath, 0, -1), 1)
+    (strip, strip_vertices), (rest, rest_vertices) = cut(welded, np.where(band, 0, 1), 2)
+    simple, strip_counts = simplify_mesh(
+        strip, tolerance, reference=reference, under=band[under[beneath]]
+    )
+    add_counts(counts, strip_counts)
+    parts = [(simple, _boundary_keys(strip, strip_vertices, simple))]
+    if rest is not None:
+        parts.insert(0, (rest, rest_vertices))
+    mesh, _ = weld(*zip(*parts, strict=True))
+    if not (is_edge_manifold(mesh.faces) and is_consistently_oriented(mesh.faces)):
+        raise ReconstructionError(
+            "the tiles' simplified meshes welded into a mesh that is not edge-manifold and "
+            "consistently oriented; run with --tolerance 0, or without tiles"
+        )
+    return mesh, counts
+
+
+def _simplify_piece(piece: Mesh, used: np.ndarray, tolerance: float):
+    """A tile's piece of the dense mesh simplified (a Dask task; `simplify_mesh` keeps its
+    boundary vertices where they are): the mesh; the dense mesh's index (`used` (V,) of
+    each vertex of `piece`) of each of its boundary vertices, -1 for every other vertex;
+    the face of the mesh closest to each face's centroid of `piece`; and the counts."""
+    simple, counts = simplify_mesh(piece, tolerance)
+    below = closest_points_on_mesh(piece.vertices[piece.faces].mean(axis=1), simple)[1]
+    return simple, _boundary_keys(piece, used, simple), below, counts
+
+
+def _boundary_keys(mesh: Mesh, keys: np.ndarray, simple: Mesh) -> np.ndarray:
+    """(V',) for each vertex of `simple`, the key (`keys` (V,)) of the boundary vertex of
+    `mesh` at the same place, -1 where none is."""
+    where = {mesh.vertices[v].tobytes(): keys[v] for v in distinct(boundary_edges(mesh.faces))}
+    return np.array([where.get(v.tobytes(), -1) for v in simple.vertices], dtype=np.int64)
+
+
+def _rings(faces: np.ndarray, marked: np.ndarray, rings: int) -> np.ndarray:
+    """(F,) bool the faces within `rings` rings of the `marked` (V,) bool vertices: the
+    faces with a marked vertex, then those with a vertex of those, and so on."""
+    vertices = marked.copy()
+    for _ in range(rings):
+        near = vertices[faces].any(axis=1)
+        vertices[faces[near]] = True
+    return near
 
 
 def parse_tiles(tiles) -> str | np.ndarray:

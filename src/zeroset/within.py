@@ -15,6 +15,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ._kernels.evaluate import build_hierarchy, closest_points_on_mesh
+from ._unique import distinct
 from .evaluate import closest_on_arrays
 from .neighbours import spatial_order
 from .refine import split_edges
@@ -22,25 +23,33 @@ from .thresholds import CHECK_ROUNDS, SAMPLE_MARGIN
 from .topology import undirected_edges
 from .types import Mesh
 
-__all__ = ["hold_within", "triangle_grid", "two_sided_errors"]
+__all__ = ["dense_points", "hold_within", "triangle_grid", "two_sided_errors"]
 
 
-def hold_within(simple: Mesh, dense: Mesh, tolerance: float) -> tuple[Mesh, int, int]:
+def hold_within(
+    simple: Mesh, dense: Mesh, tolerance: float, *, split_boundary=True, points=None
+) -> tuple[Mesh, int, int]:
     """`simple` with the longest edge of every triangle farther than ``SAMPLE_MARGIN``
     times `tolerance` from `dense` (`two_sided_errors`) split, each new vertex moved to
     its closest point on `dense`, in rounds until none is, at most ``CHECK_ROUNDS``.
+    Without `split_boundary` the longest edge that is not a boundary edge: the boundary
+    loops stay vertex for vertex (a triangle of boundary edges only stays as it is).
+    `points` (P, 3), when given, are the points of `dense` measured back onto `simple`
+    in place of all of its own (`dense` may then reach beyond `simple`).
 
     Every measured point within the margin, so that what lies between them stays within
     the tolerance. Returns the mesh, the edges split, and the triangles still farther than
     `tolerance` itself after the last round.
     """
-    check = _Check.of(simple, dense)
+    check = _Check.of(simple, dense, points)
     splits = 0
     for _ in range(CHECK_ROUNDS):
         strays = check.errors() > SAMPLE_MARGIN * tolerance
         if not strays.any():
             break
-        simple, split, kept = _split_strays(check, strays)
+        simple, split, kept = _split_strays(check, strays, split_boundary)
+        if split == 0:
+            break
         splits += split
         check = check.after_split(simple, kept)
     return simple, splits, int(np.count_nonzero(check.errors() > tolerance))
@@ -76,14 +85,14 @@ class _Check(NamedTuple):
     back: np.ndarray
 
     @classmethod
-    def of(cls, simple: Mesh, dense: Mesh) -> _Check:
-        """Measure every triangle of `simple` against `dense`."""
+    def of(cls, simple: Mesh, dense: Mesh, points=None) -> _Check:
+        """Measure every triangle of `simple` against `dense`; `points` of `dense` in place
+        of its vertices, edge midpoints and centroids, when given."""
         length = np.linalg.norm(dense.vertices[dense.faces[:, 1]]
                                 - dense.vertices[dense.faces[:, 0]], axis=1)  # fmt: skip
         spacing = max(float(np.median(length)), 1e-300)
-        edges = undirected_edges(dense.faces)[0]
-        points = np.concatenate([dense.vertices, dense.vertices[edges].mean(axis=1),
-                                 dense.vertices[dense.faces].mean(axis=1)])  # fmt: skip
+        if points is None:
+            points = dense_points(dense)
         points = np.ascontiguousarray(points[spatial_order(points)])
         _, face, back = closest_on_arrays(points, simple.vertices, simple.faces, in_order=True)
         tree = build_hierarchy(dense.vertices, dense.faces)
@@ -170,18 +179,34 @@ def triangle_grid(mesh: Mesh, spacing: float) -> tuple[np.ndarray, np.ndarray]:
     return np.concatenate([on_sides, inside]), np.concatenate([side // 3, face])
 
 
-def _split_strays(check: _Check, strays: np.ndarray) -> tuple[Mesh, int, np.ndarray]:
-    """Split the longest edge of every straying triangle (F,) bool of ``check.simple``;
-    each new vertex goes to its closest point on ``check.dense``. Returns the mesh, the
-    edges split, and each old face's index in the new mesh (-1 where it was split;
-    `split_edges` keeps the others first, in order)."""
+def dense_points(mesh: Mesh, faces=None) -> np.ndarray:
+    """(P, 3) the points of `mesh` a check measures back: the vertices, edge midpoints
+    and centroids of its `faces` (F', 3) (all of them, and every vertex, by default)."""
+    corners = mesh.vertices if faces is None else mesh.vertices[distinct(faces)]
+    faces = mesh.faces if faces is None else faces
+    edges = undirected_edges(faces)[0]
+    return np.concatenate([corners, mesh.vertices[edges].mean(axis=1),
+                           mesh.vertices[faces].mean(axis=1)])  # fmt: skip
+
+
+def _split_strays(
+    check: _Check, strays: np.ndarray, split_boundary: bool
+) -> tuple[Mesh, int, np.ndarray]:
+    """Split the longest edge (other than a boundary edge, unless `split_boundary`) of
+    every straying triangle (F,) bool of ``check.simple``; each new vertex goes to its
+    closest point on ``check.dense``. Returns the mesh, the edges split, and each old
+    face's index in the new mesh (-1 where it was split; `split_edges` keeps the others
+    first, in order)."""
     simple, dense = check.simple, check.dense
-    edges, corner_edge, _ = undirected_edges(simple.faces)
+    edges, corner_edge, face_count = undirected_edges(simple.faces)
     corners = simple.vertices[simple.faces]
     length = np.linalg.norm(corners[:, [1, 2, 0]] - corners, axis=2)
-    longest = corner_edge[np.arange(simple.n_faces), np.argmax(length, axis=1)]
+    if not split_boundary:
+        length[face_count[corner_edge] < 2] = -1.0
+    rows = np.arange(simple.n_faces)
+    pick = np.argmax(length, axis=1)
     marked = np.zeros(edges.shape[0], dtype=bool)
-    marked[longest[strays]] = True
+    marked[corner_edge[rows, pick][strays & (length[rows, pick] >= 0.0)]] = True
     split = split_edges(simple, marked)
     vertices = split.vertices.copy()
     new = np.arange(simple.n_vertices, split.n_vertices)
