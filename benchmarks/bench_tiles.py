@@ -4,7 +4,7 @@ section of docs/benchmarks.md.
 Run by hand from the repository root (needs the ``tiles`` extra; about 15 minutes and
 8 GiB of disk-backed memory on 2 cores)::
 
-    python benchmarks/bench_tiles.py [--points 20000000] [--tiles 2x2x1]
+    python benchmarks/bench_tiles.py [--points 20000000] [--tiles 2x2x1] [--untiled]
 
 The cloud is a pipe rack: eight open pipes of radius 0.15 m and 8 m length, four along x
 and four along y a metre above them, sampled uniformly with 2 mm of noise (seeded), written
@@ -13,7 +13,9 @@ the workers asked for, one task at a time each and the cores shared out among th
 reconstructs the file with ``tiles="auto"`` (or the grid given): every tile reads its
 own points from the file (memory-mapped, a chunk at a time), so the client never holds
 the cloud. Wall time is for the whole run; peak memory is each worker process's resident
-peak, as the process reports it.
+peak, as the process reports it. *Client* is the time of the stages the client runs
+on the welded mesh (after "weld"), and its share of the run. With ``--untiled`` the same
+file is also reconstructed without tiles, in this process, for its wall time and mesh.
 """
 
 from __future__ import annotations
@@ -28,6 +30,7 @@ import numpy as np
 from _docfile import replace_section
 from bench_phase1 import DEFAULT_OUTPUT, machine_info, machine_lines
 
+import zeroset
 from zeroset import io, topology
 from zeroset.tiles import dask_client, reconstruct_tiled
 
@@ -73,19 +76,34 @@ def run(path: Path, workers: int, tiles="auto") -> dict:
     }
 
 
+#: Passes of a tiled run that the client runs alone, on the welded mesh.
+CLIENT_PASSES = ("repair", "rim", "refine", "simplify")
+
+
+def run_untiled(path: Path) -> dict:
+    """The file reconstructed without tiles: wall time (reading included) and faces."""
+    start = time.perf_counter()
+    mesh = zeroset.reconstruct(io.read_points(path).points).mesh
+    return {"seconds": time.perf_counter() - start, "faces": mesh.n_faces}
+
+
 def _share(value: float | None) -> str:
     return "no seams" if value is None else f"{value:.2%}"
 
 
-def section(n_points: int, runs: list[dict], write_seconds: float, tiles="auto") -> str:
+def section(
+    n_points: int, runs: list[dict], write_seconds: float, tiles="auto", untiled=None
+) -> str:
     one = next(r for r in runs if r["workers"] == 1)
     rows = []
     for r in runs:
         passes = ", ".join(f"{name} {sec:.0f}" for name, sec in r["timings"].items())
         peaks = " / ".join(f"{p:,.0f}" for p in r["peaks"])
+        client = sum(r["timings"].get(name, 0.0) for name in CLIENT_PASSES)
         rows.append(
             f"| {r['workers']} | {'x'.join(map(str, r['tiles']))} | {r['seconds']:.0f} | "
-            f"{one['seconds'] / r['seconds']:.2f} | {passes} | {peaks} | {r['faces']:,} | "
+            f"{one['seconds'] / r['seconds']:.2f} | {passes} | "
+            f"{client:.0f} ({client / r['seconds']:.0%}) | {peaks} | {r['faces']:,} | "
             f"{r['components']} / {r['loops']} | {r['flipped']} / {_share(r['disagreement'])} | "
             f"{r['grown']} / {r['gap']:.1e} |"
         )
@@ -112,11 +130,21 @@ def section(n_points: int, runs: list[dict], write_seconds: float, tiles="auto")
             "still disagreeing. Halos: tiles that widened theirs for neighbourhoods reaching",
             "further / largest distance between two tiles' copies of a shared vertex (m).",
             "",
-            "| workers | tiles | seconds | speed-up | passes (s) | peak per worker (MiB) | "
-            "triangles | components / loops | flips / disagreement | halos |",
-            "|---|---|---|---|---|---|---|---|---|---|",
+            "| workers | tiles | seconds | speed-up | passes (s) | client s (share) | "
+            "peak per worker (MiB) | triangles | components / loops | flips / disagreement "
+            "| halos |",
+            "|---|---|---|---|---|---|---|---|---|---|---|",
             *rows,
             "",
+            *(
+                []
+                if untiled is None
+                else [
+                    f"Without tiles, in one process: {untiled['seconds']:.0f} s, "
+                    f"{untiled['faces']:,} triangles.",
+                    "",
+                ]
+            ),
             f"The client process peaked at {client_peak:,.0f} MiB (it generated and wrote the",
             "cloud too). Each pipe should come out as one component with two boundary loops.",
             "",
@@ -130,6 +158,7 @@ def main() -> None:
     parser.add_argument("--points", type=int, default=20_000_000)
     parser.add_argument("--workers", type=int, nargs="+", default=[1, 2])
     parser.add_argument("--tiles", default="auto", help='"auto" or a grid such as 2x2x1')
+    parser.add_argument("--untiled", action="store_true", help="also run without tiles")
     parser.add_argument("--output", type=Path, default=DEFAULT_OUTPUT)
     args = parser.parse_args()
     tiles = args.tiles if args.tiles == "auto" else tuple(map(int, args.tiles.split("x")))
@@ -142,7 +171,8 @@ def main() -> None:
         for workers in args.workers:
             runs.append(run(path, workers, tiles))
             print(runs[-1], flush=True)
-    text = section(args.points, runs, write_seconds, args.tiles)
+        untiled = run_untiled(path) if args.untiled else None
+    text = section(args.points, runs, write_seconds, args.tiles, untiled)
     replace_section(args.output, "tiles", text)
     print(text)
 
