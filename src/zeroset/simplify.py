@@ -16,9 +16,11 @@ collapse, it is swapped for the other diagonal when that brings the samples near
 the same limits. The chords then lie inside a convex surface; `unbias` moves every vertex
 along its normal by the mean sag of its faces, so that the signed error averages out.
 Last, every triangle is checked against the dense mesh over its whole area, and the
-longest edge of one that strays is split (`zeroset.within.hold_within`). Boundary vertices
-stay where they are and boundary edges are kept: the boundary loops are the dense mesh's
-own.
+longest edge of one that strays, a boundary edge excepted, is split
+(`zeroset.within.hold_within`). Boundary vertices stay where they are and boundary edges
+are kept: the boundary loops are the dense mesh's own, vertex for vertex, so that pieces of
+one mesh simplified apart still meet (`zeroset.tiles`, which then simplifies the band
+across their seams against the dense faces beneath it: ``simplify_mesh(reference=)``).
 """
 
 from __future__ import annotations
