@@ -723,15 +723,11 @@ def _run_optimize(args: argparse.Namespace) -> int:
 def _check_tile_folder(args: argparse.Namespace) -> None:
     """Refuse, before any work, a --per-tile output folder that cannot take the tiles."""
     from .errors import InputError
-    from .tile_output import MANIFEST
+    from .tile_output import MANIFEST, check_folder
 
-    folder = args.output
     if args.tiles is None:
         raise InputError("--per-tile goes with --tiles")
-    if folder.exists() and not folder.is_dir():
-        raise InputError(f"{folder}: is a file; --per-tile writes into a folder")
-    if not folder.parent.is_dir():
-        raise InputError(f"{folder}: directory {folder.parent} does not exist")
+    folder = check_folder(args.output)
     if (folder / MANIFEST).exists() and not args.force:
         raise InputError(f"{folder}: holds a tiled mesh ({MANIFEST}); add --force to replace it")
 

@@ -26,6 +26,7 @@ from .types import Mesh
 __all__ = [
     "FORMAT",
     "MANIFEST",
+    "check_folder",
     "cut",
     "face_tiles",
     "read_tile_meshes",
@@ -58,6 +59,17 @@ def face_tiles(mesh: Mesh, tiles, offset, cube_size: float) -> np.ndarray:
     return position[np.ravel_multi_index(place.T, grid)]
 
 
+def check_folder(folder) -> Path:
+    """`folder` as a Path, once it is known that `write_tile_meshes` can write into it (it
+    is a folder or missing, and its parent exists); InputError naming it otherwise."""
+    folder = Path(folder)
+    if folder.exists() and not folder.is_dir():
+        raise InputError(f"{folder}: is a file; per-tile output goes to a folder")
+    if not folder.parent.is_dir():
+        raise InputError(f"{folder}: directory {folder.parent} does not exist")
+    return folder
+
+
 def write_tile_meshes(folder, mesh: Mesh, tiles, offset, cube_size: float, *, binary=True) -> Path:
     """Write `mesh` as one PLY file per tile of `tiles` that holds a face, then the
     manifest (`MANIFEST`), into `folder`, which is created if missing (its parent must
@@ -67,11 +79,7 @@ def write_tile_meshes(folder, mesh: Mesh, tiles, offset, cube_size: float, *, bi
     `mesh` in input coordinates; `tiles`, `offset` (3,) and `cube_size` the plan it was
     reconstructed with (`zeroset.tiles.TiledReconstruction`).
     """
-    folder = Path(folder)
-    if folder.exists() and not folder.is_dir():
-        raise InputError(f"{folder}: is a file; per-tile output goes to a folder")
-    if not folder.parent.is_dir():
-        raise InputError(f"{folder}: directory {folder.parent} does not exist")
+    folder = check_folder(folder)
     folder.mkdir(exist_ok=True)
     entries, users = [], []
     pieces = cut(mesh, face_tiles(mesh, tiles, offset, cube_size), len(tiles))
