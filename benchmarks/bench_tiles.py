@@ -14,16 +14,21 @@ reconstructs the file with ``tiles="auto"`` (or the grid given): every tile read
 own points from the file (memory-mapped, a chunk at a time), so the client never holds
 the cloud. Wall time is for the whole run; peak memory is each worker process's resident
 peak, as the process reports it. *After weld* is the time of the stages run on the welded
-mesh, and its share of the run: repair, the rim cut and the refinement in the client, the
-simplification's tasks on the workers and then its band across the seams in the client.
+mesh, and its share of the run: repair and the rim cut in the client, the refinement's and
+the simplification's tasks on the workers, and then the simplification's band across the
+seams in the client; *in the client* is that time less the waits for the tasks.
 With ``--untiled`` the same file is also reconstructed without tiles, in this process, for
-its wall time and mesh.
+its wall time and mesh, and again on one thread (``NUMBA_NUM_THREADS=1``, in a process
+of its own): what the kernels gain from threads bounds what workers can add.
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import resource
+import subprocess
+import sys
 import tempfile
 import time
 from pathlib import Path
@@ -78,15 +83,37 @@ def run(path: Path, workers: int, tiles="auto") -> dict:
     }
 
 
-#: Passes of a tiled run on the welded mesh.
+#: Passes of a tiled run on the welded mesh, and the waits for their tasks on the workers.
 AFTER_WELD = ("repair", "rim", "refine", "simplify")
+TASKS = ("refine tasks", "simplify tasks")
 
 
 def run_untiled(path: Path) -> dict:
-    """The file reconstructed without tiles: wall time (reading included) and faces."""
+    """The file reconstructed without tiles: wall time (reading included) and faces, on
+    every core and, in a second process, on one thread."""
     start = time.perf_counter()
     mesh = zeroset.reconstruct(io.read_points(path).points).mesh
-    return {"seconds": time.perf_counter() - start, "faces": mesh.n_faces}
+    seconds = time.perf_counter() - start
+    one = subprocess.run(
+        [sys.executable, "-c", ONE_THREAD, str(path)],
+        env=os.environ | {"NUMBA_NUM_THREADS": "1"},
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    return {"seconds": seconds, "faces": mesh.n_faces, "one_thread": float(one.stdout.split()[-1])}
+
+
+#: The untiled run on one thread, in a process of its own (Numba reads its threads once).
+ONE_THREAD = """
+import sys, time, warnings
+import zeroset
+from zeroset import io
+warnings.simplefilter("ignore")
+start = time.perf_counter()
+zeroset.reconstruct(io.read_points(sys.argv[1]).points)
+print(time.perf_counter() - start)
+"""
 
 
 def _share(value: float | None) -> str:
@@ -97,15 +124,21 @@ def section(
     n_points: int, runs: list[dict], write_seconds: float, tiles="auto", untiled=None
 ) -> str:
     one = next(r for r in runs if r["workers"] == 1)
+    cores = os.cpu_count() or 1
     rows = []
     for r in runs:
-        passes = ", ".join(f"{name} {sec:.0f}" for name, sec in r["timings"].items())
+        timings = r["timings"]
+        passes = ", ".join(
+            f"{name} {sec:.0f}" for name, sec in timings.items() if name not in TASKS
+        )
         peaks = " / ".join(f"{p:,.0f}" for p in r["peaks"])
-        after = sum(r["timings"].get(name, 0.0) for name in AFTER_WELD)
+        after = sum(timings.get(name, 0.0) for name in AFTER_WELD)
+        client = after - sum(timings.get(name, 0.0) for name in TASKS)
         rows.append(
             f"| {r['workers']} | {'x'.join(map(str, r['tiles']))} | {r['seconds']:.0f} | "
             f"{one['seconds'] / r['seconds']:.2f} | {passes} | "
-            f"{after:.0f} ({after / r['seconds']:.0%}) | {peaks} | {r['faces']:,} | "
+            f"{after:.0f} ({after / r['seconds']:.0%}) | "
+            f"{client:.1f} ({client / r['seconds']:.0%}) | {peaks} | {r['faces']:,} | "
             f"{r['components']} / {r['loops']} | {r['flipped']} / {_share(r['disagreement'])} | "
             f"{r['grown']} / {r['gap']:.1e} |"
         )
@@ -128,16 +161,18 @@ def section(
             + " Passes (s): bounds of the file, parameters (measured at 20,000 points drawn",
             "in one pass over the file, on the points near them read in a second), fitting and",
             "orienting planes, contouring the owned cubes, welding, then the stages run on the",
-            "welded mesh (the simplification's tasks on the workers). Peak memory is each",
-            "worker process's resident peak (MiB). Flips: tile",
+            "welded mesh (the refinement's and the simplification's tasks on the workers). In",
+            "the client: the part of those stages that is not waiting for the tasks (repair,",
+            "rim, cutting and welding the tiles' parts, the band across the seams). Peak",
+            "memory is each worker process's resident peak (MiB). Flips: tile",
             "components turned to agree with their neighbours / share of shared seam points",
             "still disagreeing. Halos: tiles that widened theirs for neighbourhoods reaching",
             "further / largest distance between two tiles' copies of a shared vertex (m).",
             "",
             "| workers | tiles | seconds | speed-up | passes (s) | after weld s (share) | "
-            "peak per worker (MiB) | triangles | components / loops | flips / disagreement "
-            "| halos |",
-            "|---|---|---|---|---|---|---|---|---|---|---|",
+            "in the client s (share) | peak per worker (MiB) | triangles | components / loops "
+            "| flips / disagreement | halos |",
+            "|---|---|---|---|---|---|---|---|---|---|---|---|",
             *rows,
             "",
             *(
@@ -145,7 +180,12 @@ def section(
                 if untiled is None
                 else [
                     f"Without tiles, in one process: {untiled['seconds']:.0f} s, "
-                    f"{untiled['faces']:,} triangles.",
+                    f"{untiled['faces']:,} triangles; on one thread "
+                    f"{untiled['one_thread']:.0f} s, so its kernels gain "
+                    f"{untiled['one_thread'] / untiled['seconds']:.2f}x from the machine's "
+                    f"cores already, and {cores} single-threaded workers can gain at most "
+                    f"{cores * untiled['seconds'] / untiled['one_thread']:.2f}x over one "
+                    f"worker with {cores} threads.",
                     "",
                 ]
             ),

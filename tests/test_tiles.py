@@ -9,6 +9,7 @@ from pathlib import Path
 import distributed
 import numpy as np
 import pytest
+from scipy.spatial import cKDTree
 
 import zeroset.tiles
 from tests.test_sheets import pipe_rack
@@ -23,10 +24,20 @@ from zeroset import (
 from zeroset.cli import main
 from zeroset.evaluate import points_to_mesh_distance
 from zeroset.neighbours import spatial_order
+from zeroset.refine import refine_mesh
 from zeroset.stages import choose_parameters
-from zeroset.synthetic import sample_sphere, sample_tee, sample_torus, scan_pipe
-from zeroset.tile_output import read_tile_meshes
-from zeroset.tiles import _estimate_sampled, dask_client, plan_tiles, reconstruct_tiled
+from zeroset.synthetic import sample_cylinder, sample_sphere, sample_tee, sample_torus, scan_pipe
+from zeroset.tile_output import cut, read_tile_meshes, weld
+from zeroset.tiles import (
+    REFINE_RINGS,
+    _estimate_sampled,
+    _refine_part,
+    _with_rings,
+    dask_client,
+    plan_tiles,
+    reconstruct_tiled,
+)
+from zeroset.types import Mesh
 
 
 @pytest.fixture(scope="module")
@@ -42,9 +53,13 @@ def client():
 
 
 def _same_mesh(tiled, untiled):
+    """The same vertices (to 1e-9) and the same faces, oriented alike, in any order: the
+    tiles refine apart and list their pieces' vertices and faces tile by tile."""
     assert tiled.n_vertices == untiled.n_vertices and tiled.n_faces == untiled.n_faces
-    np.testing.assert_allclose(tiled.vertices, untiled.vertices, rtol=0, atol=1e-9)
-    np.testing.assert_array_equal(tiled.faces, untiled.faces)
+    distance, match = cKDTree(untiled.vertices).query(tiled.vertices)
+    assert distance.max(initial=0.0) <= 1e-9
+    assert np.unique(match).size == tiled.n_vertices  # one to one
+    np.testing.assert_array_equal(_face_rows(match[tiled.faces]), _face_rows(untiled.faces))
 
 
 def _face_rows(faces):
@@ -74,6 +89,29 @@ def _sheet_with_a_sparse_strip(n, seed):
     return np.column_stack([xy, z])
 
 
+def test_pieces_refined_apart_with_their_rings_weld_into_the_refined_mesh():
+    # An open pipe cut into four pieces across its axis and around it: each refined with
+    # the rings around it on the whole surface, as a tile's task does, kept to its own.
+    points = sample_cylinder(6_000, radius=0.25, length=1.0, noise=0.002, rng=2).points
+    coarse = reconstruct(points, refine_levels=0, tolerance=0.0)
+    mesh = Mesh(vertices=coarse.dense_mesh.vertices - coarse.offset, faces=coarse.dense_mesh.faces)
+    noise = coarse.parameters.noise
+    whole, counts = refine_mesh(mesh, coarse.surface, noise=noise)
+    assert counts["edges_split"] > mesh.n_faces  # it splits, more than once some
+    centroids = mesh.vertices[mesh.faces].mean(axis=1)
+    owner = (centroids[:, 0] > 0.0) + 2 * (centroids[:, 2] > 0.0)
+    done = []
+    for k, part in enumerate(_with_rings(mesh.faces, owner, 4, REFINE_RINGS)):
+        own = owner == k
+        assert part[own].all() and part.sum() > own.sum()  # its faces and rings of others
+        ((piece, used),) = cut(mesh, np.where(part, 0, -1), 1)
+        done.append(_refine_part((piece, used, own[part]), (None, coarse.surface), noise, None))
+    welded, index = weld([p.mesh for p in done], [p.keys for p in done])
+    copies = np.concatenate([p.mesh.vertices for p in done])
+    assert np.abs(copies - welded.vertices[index]).max() == 0.0  # seam vertices agree
+    _same_mesh(welded, whole)
+
+
 @pytest.mark.parametrize(
     "points, tiles, closed",
     [
@@ -97,6 +135,9 @@ def test_tiled_mesh_is_the_untiled_mesh(client, points, tiles, closed):
     tiled = reconstruct_tiled(points, tiles=tiles, client=client, tolerance=0.0)
     assert tiled.parameters == untiled.parameters
     _same_mesh(tiled.mesh, untiled.mesh)
+    for count in ("refine_levels", "edges_split", "projection_held"):
+        assert tiled.stats[count] == untiled.stats[count]
+    assert tiled.stats["seam_vertex_gap"] <= 1e-9 * tiled.parameters.cube_size
     assert tiled.stats["tiles"] == np.prod(tiles) and tiled.stats["seam_disagreement"] == 0.0
     if tiles == (4, 4, 1):
         assert tiled.stats["tile_components_flipped"] > 0

@@ -12,6 +12,8 @@ edge keeps its faces, a boundary edge stays a boundary.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from .surface import Surface
@@ -19,7 +21,20 @@ from .thresholds import CHORD_NOISE, CHORD_RELATIVE, MAX_LEVELS, PROJECTION_STEP
 from .topology import face_area_vectors, undirected_edges, undo_turned_faces
 from .types import Mesh
 
-__all__ = ["project_to_surface", "refine_mesh", "sag_tolerance", "sagging_edges", "split_edges"]
+__all__ = [
+    "MIDPOINT_KEYS",
+    "Refined",
+    "midpoint_keys",
+    "project_to_surface",
+    "refine_mesh",
+    "refine_traced",
+    "sag_tolerance",
+    "sagging_edges",
+    "split_edges",
+]
+
+#: Least key `midpoint_keys` gives: keys below it are free for the vertices refined.
+MIDPOINT_KEYS = 1 << 62
 
 
 def sag_tolerance(curvature, noise: float) -> np.ndarray:
@@ -50,6 +65,12 @@ def project_to_surface(mesh: Mesh, surface: Surface, *, steps: int = PROJECTION_
     held : int
         Vertices kept back so that no triangle turned over.
     """
+    projected, held = _project(mesh, surface, steps)
+    return projected, int(np.count_nonzero(held))
+
+
+def _project(mesh: Mesh, surface: Surface, steps: int) -> tuple[Mesh, np.ndarray]:
+    """`project_to_surface`, with the (V,) bool mask of the vertices held back."""
     vertices = mesh.vertices.copy()
     faces = mesh.faces
     before = face_area_vectors(vertices, faces)
@@ -62,7 +83,7 @@ def project_to_surface(mesh: Mesh, surface: Surface, *, steps: int = PROJECTION_
         moved[held] = vertices[held]
         vertices, back = undo_turned_faces(moved, vertices, faces, before)
         held |= back
-    return Mesh(vertices=vertices, faces=faces), int(np.count_nonzero(held))
+    return Mesh(vertices=vertices, faces=faces), held
 
 
 def split_edges(mesh: Mesh, marked: np.ndarray) -> Mesh:
@@ -84,6 +105,11 @@ def split_edges(mesh: Mesh, marked: np.ndarray) -> Mesh:
         The old vertices first, then one per marked edge in edge order; the faces with no
         marked edge first, in their order, then the pieces of the others.
     """
+    return _split(mesh, marked)[0]
+
+
+def _split(mesh: Mesh, marked: np.ndarray) -> tuple[Mesh, np.ndarray]:
+    """`split_edges`, with the (F',) int64 face of `mesh` each new face lies in."""
     faces = mesh.faces
     edges, corner_edge, _ = undirected_edges(faces)
     middle = np.full(edges.shape[0], -1, dtype=np.int64)
@@ -101,8 +127,10 @@ def split_edges(mesh: Mesh, marked: np.ndarray) -> Mesh:
     a, b, c = np.take_along_axis(faces, order, axis=1).T
     ab, bc, ca = np.take_along_axis(mid, order, axis=1).T
     pieces = [np.stack([a, b, c], axis=1)[count == 0]]
+    parents = [np.flatnonzero(count == 0)]
     one = count == 1
     pieces += [np.stack(t, axis=1)[one] for t in ((a, ab, c), (ab, b, c))]
+    parents += 2 * [np.flatnonzero(one)]
     two = count == 2
     # The quad a, ab, bc, c: cut along ab-c or a-bc, whichever is shorter.
     short = np.linalg.norm(vertices[ab] - vertices[c], axis=1) <= np.linalg.norm(
@@ -111,11 +139,14 @@ def split_edges(mesh: Mesh, marked: np.ndarray) -> Mesh:
     pieces.append(np.stack([ab, b, bc], axis=1)[two])
     pieces += [np.stack(t, axis=1)[two & short] for t in ((a, ab, c), (ab, bc, c))]
     pieces += [np.stack(t, axis=1)[two & ~short] for t in ((a, ab, bc), (a, bc, c))]
+    parents += [np.flatnonzero(two)] + 2 * [np.flatnonzero(two & short)]
+    parents += 2 * [np.flatnonzero(two & ~short)]
     three = count == 3
     pieces += [
         np.stack(t, axis=1)[three] for t in ((a, ab, ca), (ab, b, bc), (ca, bc, c), (ab, bc, ca))
     ]
-    return Mesh(vertices=vertices, faces=np.concatenate(pieces))
+    parents += 4 * [np.flatnonzero(three)]
+    return Mesh(vertices=vertices, faces=np.concatenate(pieces)), np.concatenate(parents)
 
 
 def sagging_edges(mesh: Mesh, surface: Surface, *, noise: float) -> np.ndarray:
@@ -163,15 +194,92 @@ def refine_mesh(mesh: Mesh, surface: Surface, *, noise: float, levels: int | Non
         ``refine_levels`` (rounds of splits), ``edges_split`` and ``projection_held``
         (vertices held back so that no triangle turned over).
     """
-    mesh, held = project_to_surface(mesh, surface)
-    rounds, split = 0, 0
+    refined = refine_traced(mesh, surface, noise=noise, levels=levels)
+    return refined.mesh, refined.counts
+
+
+@dataclass(frozen=True, eq=False)
+class Refined:
+    """A refined mesh (`refine_traced`) and where each of its parts came from.
+
+    Attributes
+    ----------
+    mesh : Mesh
+    keys : (V',) int64
+        Each vertex's key: an input vertex keeps its own, a midpoint has `midpoint_keys`
+        of its edge's ends.
+    parent : (F',) int64
+        The input face each face lies in.
+    held : (V',) int64
+        Projections in which each vertex was held back so that no triangle turned over.
+    rounds : int
+        Rounds of splits.
+    """
+
+    mesh: Mesh
+    keys: np.ndarray
+    parent: np.ndarray
+    held: np.ndarray
+    rounds: int
+
+    @property
+    def counts(self) -> dict:
+        """``refine_levels``, ``edges_split`` and ``projection_held`` (`refine_mesh`)."""
+        return {
+            "refine_levels": self.rounds,
+            "edges_split": int(np.count_nonzero(self.keys >= MIDPOINT_KEYS)),
+            "projection_held": int(self.held.sum()),
+        }
+
+
+def refine_traced(
+    mesh: Mesh, surface: Surface, *, noise: float, levels: int | None = None, keys=None
+) -> Refined:
+    """`refine_mesh`, with the key of every vertex and the input face of every face.
+
+    Two meshes that share a patch with the same `keys` (V,) int64 (below
+    ``MIDPOINT_KEYS``; their indices by default) refine it to the same vertices, of the
+    same keys, wherever the patch and the few rings around it are the same: pieces of one
+    mesh refined apart weld by their keys (`zeroset.tiles`).
+    """
+    keys = np.arange(mesh.n_vertices, dtype=np.int64) if keys is None else np.asarray(keys)
+    if keys.size and (keys.min() < 0 or keys.max() >= MIDPOINT_KEYS):
+        raise ValueError(f"vertex keys must lie in [0, {MIDPOINT_KEYS}); got another")
+    parent = np.arange(mesh.n_faces, dtype=np.int64)
+    mesh, held = _project(mesh, surface, PROJECTION_STEPS)
+    held = held.astype(np.int64)
+    rounds = 0
     for _ in range(MAX_LEVELS if levels is None else levels):
+        edges = undirected_edges(mesh.faces)[0]
         if levels is None:
             marked = sagging_edges(mesh, surface, noise=noise)
         else:
-            marked = np.ones(undirected_edges(mesh.faces)[0].shape[0], dtype=bool)
+            marked = np.ones(edges.shape[0], dtype=bool)
         if not marked.any():
             break
-        mesh, more = project_to_surface(split_edges(mesh, marked), surface)
-        rounds, split, held = rounds + 1, split + int(np.count_nonzero(marked)), held + more
-    return mesh, {"refine_levels": rounds, "edges_split": split, "projection_held": held}
+        split, within = _split(mesh, marked)
+        keys = np.concatenate([keys, midpoint_keys(keys[edges[marked, 0]], keys[edges[marked, 1]])])
+        parent = parent[within]
+        mesh, more = _project(split, surface, PROJECTION_STEPS)
+        held = np.concatenate([held, np.zeros(split.n_vertices - held.size, np.int64)]) + more
+        rounds += 1
+    return Refined(mesh=mesh, keys=keys, parent=parent, held=held, rounds=rounds)
+
+
+def midpoint_keys(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(M,) int64 the key of the midpoint of each edge whose ends have keys `a`, `b` (M,):
+    the same in either order, in ``[MIDPOINT_KEYS, 2**63)``; a 64-bit mix of the two
+    (SplitMix64's finaliser), so that two edges share one with odds of about 1e-7 among a
+    million."""
+    with np.errstate(over="ignore"):
+        low = np.minimum(a, b).astype(np.uint64)
+        high = np.maximum(a, b).astype(np.uint64)
+        mixed = _mix(_mix(low) + high)
+    return ((mixed >> np.uint64(2)) | np.uint64(MIDPOINT_KEYS)).astype(np.int64)
+
+
+def _mix(z: np.ndarray) -> np.ndarray:
+    """SplitMix64's finaliser of each uint64 of `z` (wrapping)."""
+    z = (z ^ (z >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
+    z = (z ^ (z >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
+    return z ^ (z >> np.uint64(31))

@@ -156,15 +156,24 @@ def fit(cloud: LocalCloud, parameters: Parameters, config, stages: Stages) -> Fi
     )
 
 
-def finish(mesh: Mesh, support, surface: Surface, parameters: Parameters, config, stages: Stages):
+def finish(
+    mesh: Mesh,
+    support,
+    surface: Surface,
+    parameters: Parameters,
+    config,
+    stages: Stages,
+    *,
+    refine_how=refine_mesh,
+):
     """Stages "repair", "rim" and "refine" on a contoured mesh in the local frame, with the
     `DataSupport` the rim is cut back to and the oriented `surface` it is refined on (where
-    it is smooth)."""
+    it is smooth); `refine_how` as for `refine`."""
     mesh = stages.run("repair", repair, mesh, parameters, config)
     if config.rim == "data":
         mesh = stages.run("rim", trim_rim, mesh, support, parameters, config)
     if surface.smooth:
-        mesh = stages.run("refine", refine, mesh, surface, parameters, config)
+        mesh = stages.run("refine", refine, mesh, surface, parameters, config, how=refine_how)
     return mesh
 
 
@@ -598,9 +607,12 @@ def trim_rim(mesh: Mesh, support: DataSupport, parameters: Parameters, config):
     return mesh, counts
 
 
-def refine(mesh: Mesh, surface: Surface, parameters: Parameters, config) -> tuple[Mesh, dict]:
-    """Stage "refine": move the vertices onto the smooth `surface` (`zeroset.refine`)."""
-    return refine_mesh(mesh, surface, noise=parameters.noise, levels=config.refine_levels)
+def refine(mesh: Mesh, surface: Surface, parameters: Parameters, config, *, how=refine_mesh):
+    """Stage "refine": move the vertices onto the smooth `surface` (`zeroset.refine`).
+
+    `how(mesh, surface, noise=, levels=)` returns the mesh and `refine_mesh`'s counts; the
+    tiles pass one that refines a tile at a time (`zeroset.tiles`)."""
+    return how(mesh, surface, noise=parameters.noise, levels=config.refine_levels)
 
 
 def simplify(mesh: Mesh, surface: Surface, parameters: Parameters, config, *, how=simplify_mesh):

@@ -19,6 +19,7 @@ import warnings
 from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
 from functools import partial
+from operator import itemgetter
 
 import numpy as np
 
@@ -36,6 +37,7 @@ from .orientation import agree_parts, part_extremes
 from .parameters import neighbours_read
 from .prepare import CHUNK_POINTS
 from .prepare import crop as inside
+from .refine import MIDPOINT_KEYS, refine_traced
 from .simplify import simplify_mesh
 from .stages import (
     DataSupport,
@@ -98,6 +100,9 @@ MIN_TILE_POINTS = 32
 SEAM_TOLERANCE = 1e-9
 #: Least factor a tile's halo grows by when its neighbourhoods reach beyond it.
 GROWTH = 1.5
+#: Rings of faces around a tile's own that it refines with them (`_refine_in_tiles`): a
+#: vertex's projection is held back by its faces turning over, theirs by their neighbours'.
+REFINE_RINGS = 3
 
 
 @dataclass(frozen=True)
@@ -252,8 +257,10 @@ class TiledReconstruction:
         worker process, by address); the welded mesh's counts.
     timings : dict
         Wall-clock seconds of each pass ("bounds", "parameters", "fit", "contour", "weld"),
-        then of each stage run on the welded mesh ("repair", "rim", "refine"), and of
-        "simplify", its tasks a tile at a time and the band across the seams.
+        then of each stage run on the welded mesh: "repair" and "rim" in the client;
+        "refine" and "simplify", tasks a tile at a time (of which "refine tasks" and
+        "simplify tasks" waited for them) and the client's cutting and welding, and the
+        band across the seams.
     """
 
     mesh: Mesh
@@ -447,10 +454,12 @@ def reconstruct_tiled(
     timings["fit"] = time.perf_counter() - start
 
     start = time.perf_counter()
-    pieces = [
+    contoured = [
         client.submit(_contour_tile, fit, flip, parameters, config, pure=False)
         for fit, flip in zip(fits, flips, strict=True)
     ]
+    # The pieces come to the client; each tile's surface stays on its worker, to refine on.
+    pieces = [client.submit(itemgetter(0), tile, pure=False) for tile in contoured]
     pieces = _gather(client, pieces, "contouring", progress)
     del fits
     timings["contour"] = time.perf_counter() - start
@@ -464,14 +473,7 @@ def reconstruct_tiled(
     stats["tile_grid"] = [int(c) for c in counts]
     stats["tile_components_flipped"] = sum(len(flip) for flip in flips)
     mesh, stats["seam_vertex_gap"] = _weld(pieces)
-    if stats["seam_vertex_gap"] > SEAM_TOLERANCE * parameters.cube_size:
-        warnings.warn(
-            f"two tiles put a shared vertex {stats['seam_vertex_gap']:.3g} apart, the first "
-            "one's kept: a neighbourhood reached beyond their halos, and the mesh differs from "
-            "the untiled one there; use fewer tiles",
-            SurfaceWarning,
-            stacklevel=2,
-        )
+    _warn_gap(stats["seam_vertex_gap"], parameters, "a neighbourhood reached beyond their halos")
     if not (is_edge_manifold(mesh.faces) and is_consistently_oriented(mesh.faces)):
         raise ReconstructionError(
             "the tiles' meshes welded into a mesh that is not edge-manifold and consistently "
@@ -481,9 +483,19 @@ def reconstruct_tiled(
     surface = _owned_surface(pieces)
     stages = Stages((), show=False)
     support = DataSupport.concatenate([piece.support for piece in pieces])
-    mesh = finish(mesh, support, surface, parameters, config, stages)
+    cube = parameters.cube_size
+    in_tiles = partial(_refine_in_tiles, client, plan, contoured, cube, progress, timings)
+    mesh = finish(mesh, support, surface, parameters, config, stages, refine_how=in_tiles)
+    del contoured
+    gap = stages.counts.pop("seam_vertex_gap", 0.0)
+    _warn_gap(
+        gap,
+        parameters,
+        f"the {REFINE_RINGS} rings of faces refined around a tile's own held too few",
+    )
+    stats["seam_vertex_gap"] = max(stats["seam_vertex_gap"], gap)
     if surface.smooth:
-        in_tiles = partial(_simplify_in_tiles, client, plan, parameters.cube_size, progress)
+        in_tiles = partial(_simplify_in_tiles, client, plan, cube, progress, timings)
         mesh = stages.run("simplify", simplify, mesh, surface, parameters, config, how=in_tiles)
     timings.update(stages.timings)
     add_counts(stats, stages.counts)
@@ -506,8 +518,110 @@ def reconstruct_tiled(
     )
 
 
+def _warn_gap(gap: float, parameters: Parameters, why: str) -> None:
+    """A `SurfaceWarning` where two tiles put a shared vertex `gap` apart, more than
+    rounding (``SEAM_TOLERANCE`` cubes) explains; `why` says what held too little."""
+    if gap > SEAM_TOLERANCE * parameters.cube_size:
+        warnings.warn(
+            f"two tiles put a shared vertex {gap:.3g} apart, the first one's kept: {why}, "
+            "and the mesh differs from the untiled one there; use fewer tiles",
+            SurfaceWarning,
+            stacklevel=3,
+        )
+
+
+def _refine_in_tiles(
+    client, plan, contoured, cube_size: float, progress: bool, timings: dict, mesh: Mesh,
+    surface, *, noise: float, levels: int | None,
+) -> tuple[Mesh, dict]:  # fmt: skip
+    """`zeroset.refine.refine_mesh` of `mesh` (local frame) a tile at a time: each tile's
+    faces (`zeroset.tile_output.face_tiles`) with ``REFINE_RINGS`` rings of faces around
+    them, refined by a task on the tile's own surface (`contoured`, its futures), which
+    keeps the faces within its own (`_refine_part`). The pieces weld by the keys of their
+    vertices (`zeroset.refine.refine_traced`: the index in `mesh`, a midpoint's from its
+    edge's ends). `surface` (the tiles' own fits, gathered) is not needed.
+
+    Returns the mesh and the counts, with ``seam_vertex_gap``: the largest distance between
+    two tiles' copies of one vertex (0 where the rings held all that moved it); the wait
+    for the tasks goes into `timings` as "refine tasks"."""
+    owner = face_tiles(mesh, plan, np.zeros(3), cube_size)
+    futures = []
+    for k, part in enumerate(_with_rings(mesh.faces, owner, len(plan), REFINE_RINGS)):
+        if part is None:
+            continue
+        ((piece, used),) = cut(mesh, np.where(part, 0, -1), 1)
+        # On the worker that holds the tile's surface, which is larger than its part.
+        workers = list(client.who_has([contoured[k]])[contoured[k].key])
+        [scattered] = client.scatter([(piece, used, owner[part] == k)], workers=workers)
+        futures.append(
+            client.submit(_refine_part, scattered, contoured[k], noise, levels, pure=False)
+        )
+    start = time.perf_counter()
+    done = _gather(client, futures, "refining", progress)
+    timings["refine tasks"] = time.perf_counter() - start
+    refined, index = weld([part.mesh for part in done], [part.keys for part in done])
+    copies = np.concatenate([part.mesh.vertices for part in done])
+    keys = np.empty(refined.n_vertices, dtype=np.int64)
+    keys[index] = np.concatenate([part.keys for part in done])
+    held = np.zeros(refined.n_vertices, dtype=np.int64)
+    held[index] = np.concatenate([part.held for part in done])
+    return refined, {
+        "refine_levels": max(part.rounds for part in done),
+        "edges_split": int(np.count_nonzero(keys >= MIDPOINT_KEYS)),
+        "projection_held": int(held.sum()),
+        "seam_vertex_gap": float(
+            np.linalg.norm(copies - refined.vertices[index], axis=1).max(initial=0.0)
+        ),
+    }
+
+
+def _refine_part(part, contoured, noise: float, levels: int | None):
+    """A tile's faces and the rings around them refined on its surface (a Dask task):
+    `part` is (Mesh, the index (V,) in the whole mesh of each vertex, (F,) bool the tile's
+    own faces), `contoured` `_contour_tile`'s result. Returns the `zeroset.refine.Refined`
+    of its own faces only."""
+    piece, used, own = part
+    refined = refine_traced(piece, contoured[1], noise=noise, levels=levels, keys=used)
+    ((mesh, kept),) = cut(refined.mesh, np.where(own[refined.parent], 0, -1), 1)
+    return replace(refined, mesh=mesh, keys=refined.keys[kept], held=refined.held[kept])
+
+
+def _with_rings(faces: np.ndarray, owner: np.ndarray, n_tiles: int, rings: int) -> list:
+    """For each tile k < `n_tiles`, (F,) bool its faces (`owner` (F,) == k) and the faces
+    within `rings` rings of them, or None where it owns none. The faces of other tiles
+    within reach lie within `rings` rings of a seam vertex (one of two tiles' faces), so
+    the rings grow within that band only."""
+    n_vertices = int(faces.max(initial=-1)) + 1
+    low = np.full(n_vertices, n_tiles)
+    high = np.full(n_vertices, -1)
+    np.minimum.at(low, faces.ravel(), np.repeat(owner, 3))
+    np.maximum.at(high, faces.ravel(), np.repeat(owner, 3))
+    band = np.flatnonzero(_rings(faces, low != high, rings))
+    parts = []
+    for k in range(n_tiles):
+        own = owner == k
+        if not own.any():
+            parts.append(None)
+            continue
+        reached = np.zeros(n_vertices, dtype=bool)
+        reached[faces[own]] = True
+        near = np.zeros(band.size, dtype=bool)
+        for _ in range(rings):
+            near = reached[faces[band]].any(axis=1)
+            reached[faces[band[near]]] = True
+        own[band[near]] = True
+        parts.append(own)
+    return parts
+
+
 def _simplify_in_tiles(
-    client, plan: list[Tile], cube_size: float, progress: bool, dense: Mesh, tolerance: float
+    client,
+    plan: list[Tile],
+    cube_size: float,
+    progress: bool,
+    timings: dict,
+    dense: Mesh,
+    tolerance: float,
 ) -> tuple[Mesh, dict]:
     """`zeroset.simplify.simplify_mesh` of the welded `dense` mesh (local frame) a tile at
     a time, then across the seams.
@@ -517,19 +631,24 @@ def _simplify_in_tiles(
     (`_simplify_piece`). Along the seams the pieces then hold the dense mesh's vertices;
     the band of the welded mesh around them (the faces within two rings of a seam vertex)
     is simplified again, against the dense faces beneath it (those whose centroids lie
-    closest to one of its faces), its own boundary kept. Returns the mesh and the counts.
+    closest to one of its faces), its own boundary kept. Returns the mesh and the counts;
+    the wait for the tasks goes into `timings` as "simplify tasks".
     """
     if tolerance == 0.0:  # the dense mesh as it is, in its order
         return simplify_mesh(dense, tolerance)
     owner = face_tiles(dense, plan, np.zeros(3), cube_size)
     pieces = cut(dense, owner, len(plan))
     kept = [k for k, (piece, _) in enumerate(pieces) if piece is not None]
+    # Its work grows with a piece's faces: the largest first, each to the least loaded.
+    where = _balanced(client, [pieces[k][0].n_faces for k in kept])
     futures = [
-        client.submit(_simplify_piece, client.scatter(pieces[k][0]), pieces[k][1], tolerance,
-                      pure=False)
-        for k in kept
+        client.submit(_simplify_piece, client.scatter(pieces[k][0], workers=[worker]),
+                      pieces[k][1], tolerance, workers=[worker], pure=False)
+        for k, worker in zip(kept, where, strict=True)
     ]  # fmt: skip
+    start = time.perf_counter()
     done = _gather(client, futures, "simplifying", progress)
+    timings["simplify tasks"] = time.perf_counter() - start
     counts: dict = {}
     for _, _, _, piece_counts in done:
         add_counts(counts, piece_counts)
@@ -564,6 +683,18 @@ def _simplify_in_tiles(
     return mesh, counts
 
 
+def _balanced(client, work: list) -> list[str]:
+    """The address of the worker for each task of `work` (its cost, any unit): the
+    costliest first, each to the worker with the least work so far (the LPT rule)."""
+    workers = sorted(client.scheduler_info()["workers"])
+    load = dict.fromkeys(workers, 0)
+    where = [""] * len(work)
+    for task in np.argsort(work, kind="stable")[::-1]:
+        where[task] = min(workers, key=load.__getitem__)
+        load[where[task]] += work[task]
+    return where
+
+
 def _simplify_piece(piece: Mesh, used: np.ndarray, tolerance: float):
     """A tile's piece of the dense mesh simplified (a Dask task; `simplify_mesh` keeps its
     boundary vertices where they are): the mesh; the dense mesh's index (`used` (V,) of
@@ -585,6 +716,7 @@ def _rings(faces: np.ndarray, marked: np.ndarray, rings: int) -> np.ndarray:
     """(F,) bool the faces within `rings` rings of the `marked` (V,) bool vertices: the
     faces with a marked vertex, then those with a vertex of those, and so on."""
     vertices = marked.copy()
+    near = np.zeros(faces.shape[0], dtype=bool)
     for _ in range(rings):
         near = vertices[faces].any(axis=1)
         vertices[faces[near]] = True
@@ -825,7 +957,8 @@ def _contour_tile(
     parameters: Parameters,
     config: ReconstructionConfig,
 ) -> Piece:
-    """Contour the cubes a tile owns (a Dask task)."""
+    """Contour the cubes a tile owns (a Dask task): its `Piece`, and its whole oriented
+    surface (None for a tile with no surface), which its border is refined on."""
     import socket
 
     worker = socket.gethostname()
@@ -834,7 +967,7 @@ def _contour_tile(
     except ValueError:
         pass
     if not isinstance(fit, TileFit):
-        return Piece.empty(peak_mib(), worker)
+        return Piece.empty(peak_mib(), worker), None
     fitted = fit.fitted
     sign = np.ones(fitted.orientation.n_components)
     for component, flip in flips.items():
@@ -847,7 +980,7 @@ def _contour_tile(
     edge_keys, vertices, faces, cube_keys = keyed_marching_cubes(field_, owned=fit.tile.owned)
     support = data_support(fitted, bridges, parameters)
     lo, hi = fit.tile.owned
-    return Piece(
+    piece = Piece(
         edge_keys=edge_keys,
         vertices=vertices,
         faces=faces,
@@ -858,6 +991,7 @@ def _contour_tile(
         peak_mib=peak_mib(),
         worker=worker,
     )
+    return piece, surface
 
 
 def _in_cubes(positions: np.ndarray, lo, hi, cube: float) -> np.ndarray:
