@@ -105,13 +105,13 @@ def split_edges(mesh: Mesh, marked: np.ndarray) -> Mesh:
         The old vertices first, then one per marked edge in edge order; the faces with no
         marked edge first, in their order, then the pieces of the others.
     """
-    return _split(mesh, marked)[0]
+    return _split(mesh, marked, *undirected_edges(mesh.faces)[:2])[0]
 
 
-def _split(mesh: Mesh, marked: np.ndarray) -> tuple[Mesh, np.ndarray]:
-    """`split_edges`, with the (F',) int64 face of `mesh` each new face lies in."""
+def _split(mesh: Mesh, marked, edges, corner_edge) -> tuple[Mesh, np.ndarray]:
+    """`split_edges` with the mesh's `undirected_edges` (E, 2) and (F, 3), and the (F',)
+    int64 face of `mesh` each new face lies in."""
     faces = mesh.faces
-    edges, corner_edge, _ = undirected_edges(faces)
     middle = np.full(edges.shape[0], -1, dtype=np.int64)
     middle[marked] = mesh.n_vertices + np.arange(np.count_nonzero(marked))
     vertices = np.concatenate(
@@ -163,7 +163,11 @@ def sagging_edges(mesh: Mesh, surface: Surface, *, noise: float) -> np.ndarray:
     noise : float
         Noise level sigma of one point, in data units.
     """
-    ends = mesh.vertices[undirected_edges(mesh.faces)[0]]
+    return _sagging(mesh.vertices[undirected_edges(mesh.faces)[0]], surface, noise)
+
+
+def _sagging(ends: np.ndarray, surface: Surface, noise: float) -> np.ndarray:
+    """`sagging_edges` of the edges whose ends lie at `ends` (E, 2, 3)."""
     length = np.linalg.norm(ends[:, 0] - ends[:, 1], axis=1)
     kappa = np.maximum(surface.curvature_at(ends.mean(axis=1)), 1e-300)
     return length**2 * kappa / 8.0 > sag_tolerance(kappa, noise)
@@ -250,14 +254,14 @@ def refine_traced(
     held = held.astype(np.int64)
     rounds = 0
     for _ in range(MAX_LEVELS if levels is None else levels):
-        edges = undirected_edges(mesh.faces)[0]
+        edges, corner_edge, _ = undirected_edges(mesh.faces)
         if levels is None:
-            marked = sagging_edges(mesh, surface, noise=noise)
+            marked = _sagging(mesh.vertices[edges], surface, noise)
         else:
             marked = np.ones(edges.shape[0], dtype=bool)
         if not marked.any():
             break
-        split, within = _split(mesh, marked)
+        split, within = _split(mesh, marked, edges, corner_edge)
         keys = np.concatenate([keys, midpoint_keys(keys[edges[marked, 0]], keys[edges[marked, 1]])])
         parent = parent[within]
         mesh, more = _project(split, surface, PROJECTION_STEPS)
