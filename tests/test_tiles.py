@@ -30,6 +30,7 @@ from zeroset.synthetic import sample_cylinder, sample_sphere, sample_tee, sample
 from zeroset.tile_output import cut, read_tile_meshes, weld
 from zeroset.tiles import (
     REFINE_RINGS,
+    _counts,
     _estimate_sampled,
     _refine_part,
     _with_rings,
@@ -209,6 +210,20 @@ def test_every_cube_belongs_to_one_tile():
     # Each tile reads its own box and a halo around it, not the whole cloud.
     widths = np.array([t.box[3:] - t.box[:3] for t in tiles])
     assert np.all(widths[:, 0] < 3.0 / 3 + 2 * (8 * p.rho_delta + 3 * p.cube_size))
+
+
+def test_auto_tiles_give_every_thread_a_tile_of_enough_points():
+    low, high = np.zeros(3), np.array([8.0, 4.0, 1.0])  # the rack's proportions
+    # 2M points a tile by default, the longest axis cut first.
+    assert _counts("auto", low, high, 4_000_000).tolist() == [2, 1, 1]
+    assert _counts("auto", low, high, 20_000_000).tolist() == [5, 2, 1]
+    # As many tiles as threads while each keeps 500k points, no more.
+    assert _counts("auto", low, high, 4_000_000, threads=8).tolist() == [4, 2, 1]
+    many = _counts("auto", low, high, 20_000_000, threads=16)  # the 16-core machine's run
+    assert many.prod() >= 16 and 20_000_000 / many.prod() >= 500_000
+    assert _counts("auto", low, high, 1_000_000, threads=16).prod() == 2
+    assert _counts("auto", low, high, 100_000, threads=16).prod() == 1
+    assert _counts("3x1x1", low, high, 100_000, threads=16).tolist() == [3, 1, 1]
 
 
 @pytest.mark.slow

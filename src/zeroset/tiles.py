@@ -80,8 +80,11 @@ HALO_CUBES = 2
 #: reads a wider halo, up to GROW_ROUNDS times, where they reach further.
 LEVELS = (0, 0, 1)
 GROW_ROUNDS = 3
-#: Points per tile that ``tiles="auto"`` aims at.
+#: Points per tile that ``tiles="auto"`` aims at; and the fewest it cuts a tile to so that
+#: every thread of the cluster gets one (below, a tile's halo, a few per cent of its points
+#: on each side at these sizes, grows into a share that the extra threads do not repay).
 AUTO_TILE_POINTS = 2_000_000
+AUTO_LEAST_POINTS = 500_000
 #: Clouds of at most this many points (inside the crop) get their parameters from all of
 #: them in one task, as `zeroset.reconstruct` chooses them, so that the tiled mesh is the
 #: untiled one; a larger cloud from the SAMPLES points it measures them at and every point
@@ -365,8 +368,9 @@ def reconstruct_tiled(
         As for `zeroset.reconstruct`; ``sample`` and ``voxel_size`` are not supported here,
         and only marching cubes contours tiles.
     tiles : "auto", "NxMxK" or (3,) ints
-        Tiles per axis; "auto" aims at ``AUTO_TILE_POINTS`` per tile, cutting the longest
-        axes first.
+        Tiles per axis; "auto" aims at ``AUTO_TILE_POINTS`` per tile, and at a tile for
+        every thread of the cluster where each still holds ``AUTO_LEAST_POINTS``, cutting
+        the longest axes first.
     client : distributed.Client, optional
         Where the tasks run; a local cluster of one worker process per core by default.
     parameters : Parameters, optional
@@ -417,7 +421,8 @@ def reconstruct_tiled(
             f"only {n_points} points; a neighbourhood needs at least k_max={config.k_max}"
         )
     offset = (low + high) / 2.0
-    counts = _counts(tiles, low, high, n_points)
+    threads = sum(w["nthreads"] for w in client.scheduler_info()["workers"].values())
+    counts = _counts(tiles, low, high, n_points, threads)
     timings["bounds"] = time.perf_counter() - start
     if parameters is None:
         start = time.perf_counter()
@@ -738,13 +743,16 @@ def parse_tiles(tiles) -> str | np.ndarray:
     return counts
 
 
-def _counts(tiles, low, high, n_points) -> np.ndarray:
-    """Tiles per axis (3,): as given, or for "auto" enough for AUTO_TILE_POINTS each, the
-    longest axes cut first."""
+def _counts(tiles, low, high, n_points: int, threads: int = 1) -> np.ndarray:
+    """Tiles per axis (3,): as given, or for "auto" enough for ``AUTO_TILE_POINTS`` each,
+    and one for each of the cluster's `threads` where each still holds
+    ``AUTO_LEAST_POINTS``; the longest axes cut first."""
     tiles = parse_tiles(tiles)
     if not isinstance(tiles, str):
         return tiles
-    wanted = max(1, math.ceil(n_points / AUTO_TILE_POINTS))
+    wanted = max(
+        1, math.ceil(n_points / AUTO_TILE_POINTS), min(threads, n_points // AUTO_LEAST_POINTS)
+    )
     counts = np.ones(3, dtype=np.int64)
     extent = np.maximum(np.asarray(high) - np.asarray(low), 1e-300)
     while counts.prod() < wanted:
