@@ -157,7 +157,11 @@ def section(
             f"{n_points:,} points on a pipe rack (eight open pipes, radius 0.15 m, 8 m long, in",
             "two layers a metre apart, 2 mm noise), a binary PLY read by every tile for its own",
             f"box (writing it took {write_seconds:.0f} s). "
-            + ('`tiles="auto"` aims at 2M points a tile.' if tiles == "auto" else f"Tiles {grid}.")
+            + (
+                '`tiles="auto"` aims at 2M points a tile, and at a tile a worker down to 500k.'
+                if tiles == "auto"
+                else f"Tiles {grid}."
+            )
             + " Passes (s): bounds of the file, parameters (measured at 20,000 points drawn",
             "in one pass over the file, on the points near them read in a second), fitting and",
             "orienting planes, contouring the owned cubes, welding, then the stages run on the",
@@ -183,9 +187,12 @@ def section(
                     f"{untiled['faces']:,} triangles; on one thread "
                     f"{untiled['one_thread']:.0f} s, so its kernels gain "
                     f"{untiled['one_thread'] / untiled['seconds']:.2f}x from the machine's "
-                    f"cores already, and {cores} single-threaded workers can gain at most "
-                    f"{cores * untiled['seconds'] / untiled['one_thread']:.2f}x over one "
-                    f"worker with {cores} threads.",
+                    f"cores already. {cores} single-threaded workers take no less than that "
+                    f"time shared out, {untiled['one_thread'] / cores:.0f} s (and what the "
+                    "halos repeat): at most "
+                    f"{cores * untiled['seconds'] / untiled['one_thread']:.2f}x faster than "
+                    f"the run without tiles, {cores * one['seconds'] / untiled['one_thread']:.2f}x "
+                    "than one worker.",
                     "",
                 ]
             ),
