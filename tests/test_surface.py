@@ -4,6 +4,7 @@ kind is one file and one registry line. Distances are signed against the unit sp
 import numpy as np
 import pytest
 
+from tests.meshes import assert_same_mesh
 from zeroset import InputError, reconstruct, topology
 from zeroset.evaluate import sample_surface
 from zeroset.normals import NearestPlanes
@@ -95,6 +96,4 @@ def test_a_third_surface_runs_in_tiles_as_it_runs_whole(sphere, monkeypatch):
         tiled = reconstruct_tiled(sphere.points, tiles=(2, 2, 2), client=client, surface="imls")
     assert tiled.stats["tiles"] == 8
     assert tiled.stats["surface_function"].startswith("IMLS blend of")
-    assert tiled.mesh.n_faces == whole.n_faces
-    np.testing.assert_allclose(tiled.mesh.vertices, whole.vertices, rtol=0, atol=1e-9)
-    np.testing.assert_array_equal(tiled.mesh.faces, whole.faces)
+    assert_same_mesh(tiled.mesh, whole)

@@ -9,9 +9,9 @@ from pathlib import Path
 import distributed
 import numpy as np
 import pytest
-from scipy.spatial import cKDTree
 
 import zeroset.tiles
+from tests.meshes import assert_same_mesh, face_rows
 from tests.test_sheets import pipe_rack
 from zeroset import (
     ReconstructionConfig,
@@ -53,24 +53,6 @@ def client():
         yield client
 
 
-def _same_mesh(tiled, untiled):
-    """The same vertices (to 1e-9) and the same faces, oriented alike, in any order: the
-    tiles refine apart and list their pieces' vertices and faces tile by tile."""
-    assert tiled.n_vertices == untiled.n_vertices and tiled.n_faces == untiled.n_faces
-    distance, match = cKDTree(untiled.vertices).query(tiled.vertices)
-    assert distance.max(initial=0.0) <= 1e-9
-    assert np.unique(match).size == tiled.n_vertices  # one to one
-    np.testing.assert_array_equal(_face_rows(match[tiled.faces]), _face_rows(untiled.faces))
-
-
-def _face_rows(faces):
-    """(F, 3) each face from its least vertex, orientation kept, the rows sorted: the same
-    for two lists of the same faces in any order."""
-    turn = np.argmin(faces, axis=1)
-    faces = np.take_along_axis(faces, (turn[:, None] + np.arange(3)) % 3, axis=1)
-    return faces[np.lexsort(faces.T[::-1])]
-
-
 def _wavy_sheet(n, seed):
     """An open sheet z = 0.15 sin 3x cos 2y over [-1, 1]^2 with 3 mm noise: its tiles'
     own roots point up in some, down in others, so they must be flipped to agree."""
@@ -110,7 +92,7 @@ def test_pieces_refined_apart_with_their_rings_weld_into_the_refined_mesh():
     welded, index = weld([p.mesh for p in done], [p.keys for p in done])
     copies = np.concatenate([p.mesh.vertices for p in done])
     assert np.abs(copies - welded.vertices[index]).max() == 0.0  # seam vertices agree
-    _same_mesh(welded, whole)
+    assert_same_mesh(welded, whole)
 
 
 @pytest.mark.parametrize(
@@ -135,7 +117,7 @@ def test_tiled_mesh_is_the_untiled_mesh(client, points, tiles, closed):
     untiled = reconstruct(points, tolerance=0.0)
     tiled = reconstruct_tiled(points, tiles=tiles, client=client, tolerance=0.0)
     assert tiled.parameters == untiled.parameters
-    _same_mesh(tiled.mesh, untiled.mesh)
+    assert_same_mesh(tiled.mesh, untiled.mesh)
     for count in ("refine_levels", "edges_split", "projection_held"):
         assert tiled.stats[count] == untiled.stats[count]
     assert tiled.stats["seam_vertex_gap"] <= 1e-9 * tiled.parameters.cube_size
@@ -254,7 +236,7 @@ def test_cli_per_tile_output_reloads_into_the_one_file_mesh(client, tmp_path, ca
     np.testing.assert_array_equal(one.vertices[order_one], tiled.vertices[order_tiled])
     rename = np.empty(tiled.n_vertices, dtype=np.int64)
     rename[order_tiled] = order_one
-    np.testing.assert_array_equal(_face_rows(rename[tiled.faces]), _face_rows(one.faces))
+    np.testing.assert_array_equal(face_rows(rename[tiled.faces]), face_rows(one.faces))
     manifest = json.loads((tmp_path / "tiles" / "tiles.json").read_text())
     assert manifest["grid"] == [2, 2, 1] and len(manifest["seams"]) >= 4
 
@@ -291,7 +273,7 @@ def test_tiles_read_from_a_file_with_a_crop_give_the_untiled_mesh(client, tmp_pa
         path, tiles=(4, 2, 1), client=client, parameters=untiled.parameters, crop=box,
         tolerance=0.0,
     )  # fmt: skip
-    _same_mesh(tiled.mesh, untiled.mesh)
+    assert_same_mesh(tiled.mesh, untiled.mesh)
     assert tiled.stats["input_points"] == untiled.stats["input_points"] - untiled.stats["cropped"]
 
 
@@ -360,7 +342,7 @@ def test_tiles_whose_neighbourhoods_reach_further_widen_their_halos(client):
     tiled = reconstruct_tiled(points, tiles=(4, 4, 1), client=client, tolerance=0.0)
     assert tiled.stats["tiles_grown"] > 0 and tiled.stats["tiles_failed"] == 0
     assert tiled.stats["seam_vertex_gap"] < 1e-12
-    _same_mesh(tiled.mesh, untiled.mesh)
+    assert_same_mesh(tiled.mesh, untiled.mesh)
 
 
 @pytest.mark.parametrize("from_file", [False, True], ids=["array", "file"])
