@@ -355,6 +355,8 @@ def test_a_cloud_too_large_to_hold_gets_the_parameters_of_all_its_points(tmp_pat
     local = points - offset
     whole = choose_parameters(local[spatial_order(local)], config)[0]
     source = io.write_points(tmp_path / "cloud.ply", points) if from_file else points
-    sampled = _estimate_sampled(source, len(points), offset, config, chunk_points=50_000)
+    sampled, drawn = _estimate_sampled(source, len(points), offset, config, chunk_points=50_000)
+    assert drawn.shape == (20_000, 3)  # drawn from the cloud, in its local frame
+    assert np.all(np.isin(drawn.view([("", float)] * 3), local.view([("", float)] * 3)))
     for name in ("spacing", "noise", "rho_delta", "cube_size", "quadric_noise"):
         assert getattr(sampled, name) == pytest.approx(getattr(whole, name), rel=0.03), name

@@ -29,6 +29,7 @@ __all__ = [
     "check_folder",
     "cut",
     "face_tiles",
+    "point_tiles",
     "read_tile_meshes",
     "weld",
     "write_tile_meshes",
@@ -44,8 +45,13 @@ def face_tiles(mesh: Mesh, tiles, offset, cube_size: float) -> np.ndarray:
     """(F,) int64 the position in `tiles` (a plan of `zeroset.tiles.Tile`) of the tile that
     owns the cube holding each face's centroid; `mesh` in input coordinates, the lattice
     of cubes of `cube_size` from `offset` (3,)."""
-    cubes = np.floor((mesh.vertices[mesh.faces].mean(axis=1) - offset) / cube_size)
-    cubes = cubes.astype(np.int64)
+    return point_tiles(mesh.vertices[mesh.faces].mean(axis=1), tiles, offset, cube_size)
+
+
+def point_tiles(points: np.ndarray, tiles, offset, cube_size: float) -> np.ndarray:
+    """(N,) int64 the position in `tiles` of the tile that owns the cube holding each point
+    (N, 3), as `face_tiles`."""
+    cubes = np.floor((np.reshape(points, (-1, 3)) - offset) / cube_size).astype(np.int64)
     # The tiles form a grid: per axis, the first cube of each of its slices.
     place = np.zeros((cubes.shape[0], 3), dtype=np.int64)
     for axis in range(3):

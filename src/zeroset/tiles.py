@@ -56,7 +56,7 @@ from .stages import (
 from .stats import add_counts, declared
 from .surface import Surface, surface_kind
 from .thresholds import RADIUS_CAP
-from .tile_output import cut, face_tiles, weld
+from .tile_output import cut, face_tiles, point_tiles, weld
 from .topology import boundary_edges, is_consistently_oriented, is_edge_manifold
 from .types import Mesh, Parameters
 
@@ -424,20 +424,31 @@ def reconstruct_tiled(
     threads = sum(w["nthreads"] for w in client.scheduler_info()["workers"].values())
     counts = _counts(tiles, low, high, n_points, threads)
     timings["bounds"] = time.perf_counter() - start
+    drawn = np.zeros((0, 3))
     if parameters is None:
         start = time.perf_counter()
         estimate = _estimate_whole if n_points <= WHOLE_CLOUD_POINTS else _estimate_sampled
-        parameters = client.submit(estimate, source, n_points, offset, config, pure=False).result()
+        task = client.submit(estimate, source, n_points, offset, config, pure=False)
+        parameters, drawn = task.result()
         timings["parameters"] = time.perf_counter() - start
     # A local surface may reach further than the planes (zeroset.surface.Surface.reach).
     reach = max(HALO_RADII, surface_kind(config.surface).reach)
     plan = plan_tiles(low, high, offset, parameters, counts, halo_radii=reach)
 
     start = time.perf_counter()
+    # The tiles' work grows with their points, told by the points drawn: each to a worker
+    # by the LPT rule, each worker's largest first (a tile's contouring and refinement
+    # follow on its worker). Another worker may take one whose worker is gone.
+    drawn_in = np.bincount(
+        point_tiles(drawn, plan, np.zeros(3), parameters.cube_size), None, len(plan)
+    )
+    where = _balanced(client, drawn_in.tolist())
     fits = [
-        client.submit(_fit_tile, source, tile, offset, parameters, config, pure=False)
-        for tile in plan
-    ]
+        client.submit(_fit_tile, source, tile, offset, parameters, config,
+                      workers=[worker], allow_other_workers=True, priority=int(most),
+                      pure=False)
+        for tile, most, worker in zip(plan, drawn_in, where, strict=True)
+    ]  # fmt: skip
     seams = _gather(
         client,
         [client.submit(_seam, fit, parameters, pure=False) for fit in fits],
@@ -692,11 +703,12 @@ def _balanced(client, work: list) -> list[str]:
     """The address of the worker for each task of `work` (its cost, any unit): the
     costliest first, each to the worker with the least work so far (the LPT rule)."""
     workers = sorted(client.scheduler_info()["workers"])
-    load = dict.fromkeys(workers, 0)
+    load = {worker: [0, 0] for worker in workers}  # work, then tasks, so ties alternate
     where = [""] * len(work)
     for task in np.argsort(work, kind="stable")[::-1]:
         where[task] = min(workers, key=load.__getitem__)
-        load[where[task]] += work[task]
+        load[where[task]][0] += work[task]
+        load[where[task]][1] += 1
     return where
 
 
@@ -788,18 +800,23 @@ def _bounds(source, crop) -> tuple[np.ndarray, np.ndarray, int]:
     return io.point_bounds(source, crop=crop)
 
 
-def _estimate_whole(source, n_points, offset, config) -> Parameters:
-    """Parameters of every point (a Dask task): those `zeroset.reconstruct` chooses."""
+def _estimate_whole(source, n_points, offset, config) -> tuple[Parameters, np.ndarray]:
+    """Parameters of every point (a Dask task): those `zeroset.reconstruct` chooses; and
+    ``SAMPLES`` of the points (local frame) drawn at random, which tell where they lie."""
     local = np.concatenate(list(_chunks(source, config.crop))) - offset
-    return choose_parameters(local[spatial_order(local)], config)[0]
+    drawn = np.random.default_rng(config.seed).permutation(len(local))[:SAMPLES]
+    return choose_parameters(local[spatial_order(local)], config)[0], local[drawn]
 
 
-def _estimate_sampled(source, n_points, offset, config, chunk_points=CHUNK_POINTS) -> Parameters:
+def _estimate_sampled(
+    source, n_points, offset, config, chunk_points=CHUNK_POINTS
+) -> tuple[Parameters, np.ndarray]:
     """Parameters of a cloud too large to hold (a Dask task), measured as `zeroset.reconstruct`
     measures them: at ``SAMPLES`` points drawn at random in one pass over its chunks, on
     every point within reach of them read in another. The reach starts at twice the
     distance their neighbourhoods would span at the mean density, and doubles until those
-    of ``WHOLE_NEIGHBOURHOODS`` of them lie wholly within it; the others are not used."""
+    of ``WHOLE_NEIGHBOURHOODS`` of them lie wholly within it; the others are not used.
+    Returns the parameters and the points drawn (local frame)."""
     rng = np.random.default_rng(config.seed)
     share = min(1.0, 2.0 * SAMPLES / n_points)
     drawn = [c[rng.random(len(c)) < share] for c in _chunks(source, config.crop, chunk_points)]
@@ -820,7 +837,7 @@ def _estimate_sampled(source, n_points, offset, config, chunk_points=CHUNK_POINT
         distances, rows = read.query(samples, k=min(wanted, len(local)), workers=query_workers())
         whole = distances[:, -1] <= reach
         if whole.mean() >= WHOLE_NEIGHBOURHOODS:
-            return choose_parameters(local, config, tree=read, rows=rows[whole, 0])[0]
+            return choose_parameters(local, config, tree=read, rows=rows[whole, 0])[0], samples
         reach *= 2.0
     raise ReconstructionError(
         f"the neighbourhoods of only {whole.mean():.1%} of {len(samples)} sample points lie "
