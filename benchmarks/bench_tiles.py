@@ -70,6 +70,7 @@ def run(path: Path, workers: int, tiles="auto") -> dict:
         "workers": workers,
         "seconds": seconds,
         "timings": result.timings,
+        "waits": result.waits,
         "peaks": sorted(result.stats["worker_peak_mib"].values()),
         "tiles": result.stats["tile_grid"],
         "faces": mesh.n_faces,
@@ -83,9 +84,8 @@ def run(path: Path, workers: int, tiles="auto") -> dict:
     }
 
 
-#: Passes of a tiled run on the welded mesh, and the waits for their tasks on the workers.
+#: Passes of a tiled run on the welded mesh.
 AFTER_WELD = ("repair", "rim", "refine", "simplify")
-TASKS = ("refine tasks", "simplify tasks")
 
 
 def run_untiled(path: Path) -> dict:
@@ -128,12 +128,10 @@ def section(
     rows = []
     for r in runs:
         timings = r["timings"]
-        passes = ", ".join(
-            f"{name} {sec:.0f}" for name, sec in timings.items() if name not in TASKS
-        )
+        passes = ", ".join(f"{name} {sec:.0f}" for name, sec in timings.items())
         peaks = " / ".join(f"{p:,.0f}" for p in r["peaks"])
         after = sum(timings.get(name, 0.0) for name in AFTER_WELD)
-        client = after - sum(timings.get(name, 0.0) for name in TASKS)
+        client = after - sum(r["waits"].values())
         rows.append(
             f"| {r['workers']} | {'x'.join(map(str, r['tiles']))} | {r['seconds']:.0f} | "
             f"{one['seconds'] / r['seconds']:.2f} | {passes} | "

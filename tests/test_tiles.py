@@ -287,6 +287,9 @@ def test_the_tiled_default_mesh_lies_within_its_tolerance_of_the_untiled_dense_m
     assert tiled.mesh.n_faces < untiled.dense_mesh.n_faces / 3
     away = points_to_mesh_distance(tiled.mesh.vertices, untiled.dense_mesh)
     assert away.max() <= untiled.stats["tolerance"]
+    # The waits for the tasks are part of their stages, not stages of their own.
+    assert set(tiled.waits) == {"refine", "simplify"} and not set(tiled.waits) - set(tiled.timings)
+    assert all(0.0 < tiled.waits[name] <= tiled.timings[name] for name in tiled.waits)
 
 
 def _torus_and_scatter():

@@ -261,9 +261,11 @@ class TiledReconstruction:
     timings : dict
         Wall-clock seconds of each pass ("bounds", "parameters", "fit", "contour", "weld"),
         then of each stage run on the welded mesh: "repair" and "rim" in the client;
-        "refine" and "simplify", tasks a tile at a time (of which "refine tasks" and
-        "simplify tasks" waited for them) and the client's cutting and welding, and the
-        band across the seams.
+        "refine" and "simplify", tasks a tile at a time, the client's cutting and welding,
+        and the band across the seams.
+    waits : dict
+        Of "refine" and "simplify", the seconds spent waiting for their tasks on the
+        workers; the rest of each is the client's own work.
     """
 
     mesh: Mesh
@@ -273,6 +275,7 @@ class TiledReconstruction:
     tiles: list
     stats: dict = field(default_factory=dict)
     timings: dict = field(default_factory=dict)
+    waits: dict = field(default_factory=dict)
 
 
 def plan_tiles(
@@ -500,7 +503,8 @@ def reconstruct_tiled(
     stages = Stages((), show=False)
     support = DataSupport.concatenate([piece.support for piece in pieces])
     cube = parameters.cube_size
-    in_tiles = partial(_refine_in_tiles, client, plan, contoured, cube, progress, timings)
+    waits: dict = {}
+    in_tiles = partial(_refine_in_tiles, client, plan, contoured, cube, progress, waits)
     mesh = finish(mesh, support, surface, parameters, config, stages, refine_how=in_tiles)
     del contoured
     gap = stages.counts.pop("seam_vertex_gap", 0.0)
@@ -511,7 +515,7 @@ def reconstruct_tiled(
     )
     stats["seam_vertex_gap"] = max(stats["seam_vertex_gap"], gap)
     if surface.smooth:
-        in_tiles = partial(_simplify_in_tiles, client, plan, cube, progress, timings)
+        in_tiles = partial(_simplify_in_tiles, client, plan, cube, progress, waits)
         mesh = stages.run("simplify", simplify, mesh, surface, parameters, config, how=in_tiles)
     timings.update(stages.timings)
     add_counts(stats, stages.counts)
@@ -531,6 +535,7 @@ def reconstruct_tiled(
         tiles=plan,
         stats=declared(stats),
         timings=timings,
+        waits=waits,
     )
 
 
@@ -547,7 +552,7 @@ def _warn_gap(gap: float, parameters: Parameters, why: str) -> None:
 
 
 def _refine_in_tiles(
-    client, plan, contoured, cube_size: float, progress: bool, timings: dict, mesh: Mesh,
+    client, plan, contoured, cube_size: float, progress: bool, waits: dict, mesh: Mesh,
     surface, *, noise: float, levels: int | None,
 ) -> tuple[Mesh, dict]:  # fmt: skip
     """`zeroset.refine.refine_mesh` of `mesh` (local frame) a tile at a time: each tile's
@@ -559,7 +564,7 @@ def _refine_in_tiles(
 
     Returns the mesh and the counts, with ``seam_vertex_gap``: the largest distance between
     two tiles' copies of one vertex (0 where the rings held all that moved it); the wait
-    for the tasks goes into `timings` as "refine tasks"."""
+    for the tasks goes into `waits` as "refine"."""
     owner = face_tiles(mesh, plan, np.zeros(3), cube_size)
     futures = []
     for k, part in enumerate(_with_rings(mesh.faces, owner, len(plan), REFINE_RINGS)):
@@ -574,7 +579,7 @@ def _refine_in_tiles(
         )
     start = time.perf_counter()
     done = _gather(client, futures, "refining", progress)
-    timings["refine tasks"] = time.perf_counter() - start
+    waits["refine"] = time.perf_counter() - start
     refined, index = weld([part.mesh for part in done], [part.keys for part in done])
     copies = np.concatenate([part.mesh.vertices for part in done])
     keys = np.empty(refined.n_vertices, dtype=np.int64)
@@ -635,7 +640,7 @@ def _simplify_in_tiles(
     plan: list[Tile],
     cube_size: float,
     progress: bool,
-    timings: dict,
+    waits: dict,
     dense: Mesh,
     tolerance: float,
 ) -> tuple[Mesh, dict]:
@@ -648,7 +653,7 @@ def _simplify_in_tiles(
     the band of the welded mesh around them (the faces within two rings of a seam vertex)
     is simplified again, against the dense faces beneath it (those whose centroids lie
     closest to one of its faces), its own boundary kept. Returns the mesh and the counts;
-    the wait for the tasks goes into `timings` as "simplify tasks".
+    the wait for the tasks goes into `waits` as "simplify".
     """
     if tolerance == 0.0:  # the dense mesh as it is, in its order
         return simplify_mesh(dense, tolerance)
@@ -664,7 +669,7 @@ def _simplify_in_tiles(
     ]  # fmt: skip
     start = time.perf_counter()
     done = _gather(client, futures, "simplifying", progress)
-    timings["simplify tasks"] = time.perf_counter() - start
+    waits["simplify"] = time.perf_counter() - start
     counts: dict = {}
     for _, _, _, piece_counts in done:
         add_counts(counts, piece_counts)
