@@ -24,6 +24,7 @@ SECTIONS = (
     "report",
     "large",
     "tiles",
+    "tile-rings",
     "scans",
     "registered",
     "inspection",
@@ -65,6 +66,8 @@ and keeps the rest (this introduction included):
 - [Tiled on Dask](#tiled-on-dask-a-20m-point-pipe-network): a 20M-point pipe rack
   reconstructed in tiles on a local Dask cluster of one and two worker processes, wall
   time and peak memory per worker (`benchmarks/bench_tiles.py`).
+- [Refinement rings in tiles](#refinement-rings-in-tiles): with how many rings of faces
+  around its own a tile refines to give the untiled mesh (`benchmarks/bench_tile_rings.py`).
 - [Anisotropic laser scans](#anisotropic-laser-scans): simulated in-pipe scans and real
   rotating-laser scans, zeroset beside Open3D and PyMeshLab (`benchmarks/bench_scans.py`,
   needs the `bench` extra).
