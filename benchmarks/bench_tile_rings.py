@@ -1,15 +1,16 @@
 """The rings of faces a tile refines around its own: with how many the tiles give the
 untiled mesh.
 
-Run by hand from the repository root (needs the ``tiles`` extra; about three minutes on
+Run by hand from the repository root (needs the ``tiles`` extra; about six minutes on
 2 cores)::
 
     python benchmarks/bench_tile_rings.py
 
 Eight tiled runs (the clouds and grids of the tiles' equality test: a torus, a T-junction,
-a wavy sheet, a sparse in-pipe scan, a pipe rack), dense meshes (tolerance 0), on a local
-cluster of two single-threaded workers, with ``zeroset.tiles.REFINE_RINGS`` set to 0-3 in
-turn (the client cuts the parts, so setting it there is enough). For each: how many runs
+a wavy sheet, a sparse in-pipe scan; and `bench_tiles`' pipe rack at 64,000 points), dense
+meshes (tolerance 0), on a local cluster of two single-threaded workers, with
+``zeroset.tiles.REFINE_RINGS`` set to 0-3 in turn (the client cuts the parts, so setting it
+there is enough). For each: how many runs
 give the untiled mesh (vertices within 1e-9, the same faces), and the largest distance
 between two tiles' copies of a vertex, in cubes. The section between
 ``<!-- tile-rings:begin -->`` and ``<!-- tile-rings:end -->`` of docs/benchmarks.md is
@@ -23,11 +24,12 @@ import warnings
 import numpy as np
 from _docfile import replace_section
 from bench_phase1 import DEFAULT_OUTPUT, machine_info, reproduce_lines
+from bench_tiles import pipe_rack
 from scipy.spatial import cKDTree
 
 import zeroset.tiles
 from zeroset import reconstruct
-from zeroset.synthetic import sample_cylinder, sample_tee, sample_torus, scan_pipe
+from zeroset.synthetic import sample_tee, sample_torus, scan_pipe
 
 RINGS = (0, 1, 2, 3)
 
@@ -38,18 +40,6 @@ def wavy_sheet(n: int, seed: int) -> np.ndarray:
     xy = rng.uniform(-1.0, 1.0, (n, 2))
     z = 0.15 * np.sin(3 * xy[:, 0]) * np.cos(2 * xy[:, 1]) + rng.normal(0.0, 0.003, n)
     return np.column_stack([xy, z])
-
-
-def rack(n: int, seed: int) -> np.ndarray:
-    """Eight open pipes (radius 0.15 m, 2 m long, 2 mm noise), 0.2 m apart side by side:
-    four along x at z = 0, four along y at z = 1 (the tests' rack)."""
-    rng = np.random.default_rng(seed)
-    pipes = []
-    for k in range(8):
-        x, y, z = sample_cylinder(n // 8, radius=0.15, length=2.0, noise=0.002, rng=rng).points.T
-        across = (k % 4) * 0.5 - 0.75
-        pipes.append(np.column_stack([z, x + across, y] if k < 4 else [x + across, z, y + 1.0]))
-    return np.vstack(pipes)
 
 
 def cases() -> list:
@@ -65,7 +55,7 @@ def cases() -> list:
         ("sheet", wavy_sheet(40_000, 1), (4, 4, 1)),
         ("sparse scan", scan, (2, 2, 2)),
         ("sparse scan", scan, (3, 3, 3)),
-        ("rack", rack(64_000, 2), (3, 3, 1)),
+        ("rack", pipe_rack(64_000, seed=2), (3, 3, 1)),
     ]
 
 
@@ -122,7 +112,7 @@ def main() -> None:
             "Each tile refines its own faces with rings of faces around them (`REFINE_RINGS`,",
             "3): a vertex's projection is held back where one of its faces turns over, which",
             "depends on its neighbours. Eight tiled dense meshes against the untiled ones",
-            "(the tiles' equality test's clouds and grids):",
+            "(the tiles' equality test's clouds and grids; `bench_tiles`' rack at 64k points):",
             "",
             "| rings | the untiled mesh | largest seam gap (cubes) | differ |",
             "|---|---|---|---|",
