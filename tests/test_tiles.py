@@ -89,6 +89,9 @@ def test_pieces_refined_apart_with_their_rings_weld_into_the_refined_mesh():
         assert part[own].all() and part.sum() > own.sum()  # its faces and rings of others
         ((piece, used),) = cut(mesh, np.where(part, 0, -1), 1)
         done.append(_refine_part((piece, used, own[part]), (None, coarse.surface), noise, None))
+        # Each face kept lies in one of the piece's own faces; its parent says which.
+        assert done[-1].parent.size == done[-1].mesh.n_faces
+        assert own[np.flatnonzero(part)[done[-1].parent]].all()
     welded, index = weld([p.mesh for p in done], [p.keys for p in done])
     copies = np.concatenate([p.mesh.vertices for p in done])
     assert np.abs(copies - welded.vertices[index]).max() == 0.0  # seam vertices agree

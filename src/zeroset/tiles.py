@@ -37,7 +37,7 @@ from .orientation import agree_parts, part_extremes
 from .parameters import neighbours_read
 from .prepare import CHUNK_POINTS
 from .prepare import crop as inside
-from .refine import MIDPOINT_KEYS, refine_traced
+from .refine import Refined, refine_traced
 from .simplify import simplify_mesh
 from .stages import (
     DataSupport,
@@ -566,10 +566,11 @@ def _refine_in_tiles(
     two tiles' copies of one vertex (0 where the rings held all that moved it); the wait
     for the tasks goes into `waits` as "refine"."""
     owner = face_tiles(mesh, plan, np.zeros(3), cube_size)
-    futures = []
+    futures, faces = [], []
     for k, part in enumerate(_with_rings(mesh.faces, owner, len(plan), REFINE_RINGS)):
         if part is None:
             continue
+        faces.append(np.flatnonzero(part))  # of `mesh`, in the part's order
         ((piece, used),) = cut(mesh, np.where(part, 0, -1), 1)
         # On the worker that holds the tile's surface, which is larger than its part.
         workers = list(client.who_has([contoured[k]])[contoured[k].key])
@@ -580,20 +581,17 @@ def _refine_in_tiles(
     start = time.perf_counter()
     done = _gather(client, futures, "refining", progress)
     waits["refine"] = time.perf_counter() - start
-    refined, index = weld([part.mesh for part in done], [part.keys for part in done])
-    copies = np.concatenate([part.mesh.vertices for part in done])
-    keys = np.empty(refined.n_vertices, dtype=np.int64)
+    welded, index = weld([part.mesh for part in done], [part.keys for part in done])
+    keys = np.empty(welded.n_vertices, dtype=np.int64)
     keys[index] = np.concatenate([part.keys for part in done])
-    held = np.zeros(refined.n_vertices, dtype=np.int64)
+    held = np.empty(welded.n_vertices, dtype=np.int64)
     held[index] = np.concatenate([part.held for part in done])
-    return refined, {
-        "refine_levels": max(part.rounds for part in done),
-        "edges_split": int(np.count_nonzero(keys >= MIDPOINT_KEYS)),
-        "projection_held": int(held.sum()),
-        "seam_vertex_gap": float(
-            np.linalg.norm(copies - refined.vertices[index], axis=1).max(initial=0.0)
-        ),
-    }
+    parent = np.concatenate([ids[part.parent] for ids, part in zip(faces, done, strict=True)])
+    rounds = max(part.rounds for part in done)
+    refined = Refined(mesh=welded, keys=keys, parent=parent, held=held, rounds=rounds)
+    copies = np.concatenate([part.mesh.vertices for part in done])
+    gap = np.linalg.norm(copies - welded.vertices[index], axis=1).max(initial=0.0)
+    return welded, refined.counts | {"seam_vertex_gap": float(gap)}
 
 
 def _refine_part(part, contoured, noise: float, levels: int | None):
@@ -603,8 +601,15 @@ def _refine_part(part, contoured, noise: float, levels: int | None):
     of its own faces only."""
     piece, used, own = part
     refined = refine_traced(piece, contoured[1], noise=noise, levels=levels, keys=used)
-    ((mesh, kept),) = cut(refined.mesh, np.where(own[refined.parent], 0, -1), 1)
-    return replace(refined, mesh=mesh, keys=refined.keys[kept], held=refined.held[kept])
+    mine = own[refined.parent]
+    ((mesh, kept),) = cut(refined.mesh, np.where(mine, 0, -1), 1)
+    return replace(
+        refined,
+        mesh=mesh,
+        keys=refined.keys[kept],
+        parent=refined.parent[mine],
+        held=refined.held[kept],
+    )
 
 
 def _with_rings(faces: np.ndarray, owner: np.ndarray, n_tiles: int, rings: int) -> list:
