@@ -31,6 +31,7 @@ SECTIONS = (
     "runs",
     "peers",
     "holes",
+    "live",
 )
 
 INTRO = """# Benchmarks

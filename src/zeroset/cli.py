@@ -1,4 +1,5 @@
-"""The command line: ``zeroset reconstruct``, ``optimize``, ``render``, ``demo`` and more."""
+"""The command line: ``zeroset reconstruct``, ``optimize``, ``render``, ``live``, ``demo``
+and more."""
 
 from __future__ import annotations
 
@@ -114,6 +115,7 @@ def _parser() -> argparse.ArgumentParser:
         _demo_command,
         _synth_command,
         _evaluate_command,
+        _live_command,
     ):
         build(commands, [common, writes])
     return parser
@@ -449,6 +451,179 @@ SYNTH_KINDS = {
     "damaged-elbow-scan": "scan_damaged_pipe",
     "pipe-run": "random_pipe_run",
 }
+
+
+def _live_command(commands, parents) -> None:
+    """``zeroset live``: scans given one at a time, the mesh written block by block."""
+    parser = commands.add_parser(
+        "live",
+        allow_abbrev=False,
+        parents=parents,
+        help="reconstruct scan by scan, as a robot scans, writing finished blocks",
+        description="Replay scans one at a time (one file a scan, or one cloud split into "
+        "its scans), or follow a folder a robot writes them into; each block of the "
+        "mesh is written as soon as no later scan can reach it.",
+    )
+    parser.add_argument(
+        "input", type=Path, nargs="*", help="scans: " + _formats("points") + ", each with "
+        "its sensor positions (vp_x vp_y vp_z); one file is split into its scans",
+    )  # fmt: skip
+    parser.add_argument(
+        "-o", "--output", type=Path, required=True, help="folder: one PLY mesh a block, "
+        "the manifest tiles.json (read back by zeroset.tile_output.read_tile_meshes) and "
+        "live.json (what was chosen, each scan's seconds, the counts)",
+    )  # fmt: skip
+    parser.add_argument(
+        "--split-by", metavar="sensor|NAME", help="one input is cut into scans by its sensor "
+        "positions, or by a per-point PLY property or NPZ array NAME (a scan index or a "
+        "time) (default: sensor)",
+    )  # fmt: skip
+    parser.add_argument(
+        "--split-every", type=float, metavar="X", help="by sensor: a new scan where the "
+        "sensor has moved this far; by NAME: a scan for each span of X of it (default: "
+        "each value of NAME a scan)",
+    )  # fmt: skip
+    parser.add_argument(
+        "--follow", type=Path, metavar="DIR", help="take the scan files written into DIR, "
+        "in name order, once each holds still (after the inputs, if any)",
+    )  # fmt: skip
+    parser.add_argument(
+        "--idle", type=float, default=60.0, metavar="SECONDS",
+        help="with --follow: stop after this long without a new file (default: 60)",
+    )  # fmt: skip
+    parser.add_argument(
+        "--reach", type=float, help="farthest a scan's point lies from its sensor: blocks "
+        "beyond it from the newest sensor are finished (default: the longest range seen)",
+    )  # fmt: skip
+    parser.add_argument(
+        "--max-jump", type=float, help="a scan whose sensor lies farther than this from the "
+        "previous one's is skipped (default: the reach)",
+    )  # fmt: skip
+    parser.add_argument(
+        "--block-cubes", type=int, default=None, help="cubes along each edge of a block "
+        "(default: 40)",
+    )  # fmt: skip
+    parser.add_argument(
+        "--preview", type=float, default=0.0, metavar="DISTANCE", help="re-mesh the open "
+        "blocks the newest scan reached within this distance of its sensor (default: 0, none)",
+    )  # fmt: skip
+    _add_config_options(parser)
+    parser.set_defaults(command="live", run=_run_live)
+
+
+def _run_live(args: argparse.Namespace) -> int:
+    """`zeroset live`: each scan to `LiveReconstruction.add`, then `close`; live.json."""
+    import time
+
+    import numpy as np
+    from tqdm.auto import tqdm
+
+    from . import io
+    from .config import ReconstructionConfig
+    from .errors import InputError
+    from .live import BLOCK_CUBES, LiveReconstruction
+    from .tile_output import MANIFEST, check_folder
+
+    if not args.input and args.follow is None:
+        raise InputError("give scan files, or --follow DIR")
+    folder = check_folder(args.output)
+    report_path = folder / "live.json"
+    if (folder / MANIFEST).exists() or report_path.exists():
+        if not args.force:
+            raise InputError(f"{folder}: holds a mesh ({MANIFEST}); add --force to replace it")
+        for old in [folder / MANIFEST, report_path, *folder.glob("block-*.ply")]:
+            old.unlink(missing_ok=True)
+    for source in args.input:
+        io.check_input(source)
+    config = ReconstructionConfig().with_overrides(**_config_overrides(args))
+    live = LiveReconstruction(
+        config,
+        block_cubes=BLOCK_CUBES if args.block_cubes is None else args.block_cubes,
+        reach=args.reach,
+        max_jump=args.max_jump,
+        folder=folder,
+        preview=args.preview,
+    )
+    seconds, names = [], []
+    bar = tqdm(
+        desc="scans", unit="scan", leave=False, disable=args.quiet or not sys.stderr.isatty()
+    )
+    start = time.perf_counter()
+    for name, points, viewpoints in _live_scans(args, config):
+        update = live.add(points, viewpoints)
+        seconds.append(update.seconds)
+        names.append(name)
+        bar.update()
+        bar.set_postfix_str(f"{live.summary()['blocks_finished']} blocks finished")
+    live.close()
+    bar.close()
+    stats = live.summary()
+    parameters = live.parameters
+    report = {
+        "inputs": [str(p) for p in args.input],
+        "followed": None if args.follow is None else str(args.follow),
+        "scans": [{"name": n, "seconds": s} for n, s in zip(names, seconds, strict=True)],
+        "skipped": [{"scan": k, "reason": why} for k, why in live.skipped],
+        "parameters": None if parameters is None else {
+            "rho_delta": parameters.rho_delta, "cube_size": parameters.cube_size,
+            "noise": parameters.noise, "notes": list(parameters.notes),
+        },
+        "block_cubes": live.block_cubes,
+        "lattice_origin": None if live.offset is None else live.offset.tolist(),
+        "stats": stats,
+        "timings": {k: v for k, v in live.timings.items() if k != "scans"},
+        "total_seconds": time.perf_counter() - start,
+    }  # fmt: skip
+    io.write_json(report_path, report)
+    if not args.quiet:
+        median = float(np.median(seconds)) if seconds else 0.0
+        print(
+            f"scans       {len(seconds)} given, {stats['scans_skipped']} skipped; "
+            f"{stats['late_points']} late points left out; median {median:.2f} s a scan"
+        )
+        print(
+            f"mesh        {stats['blocks_finished']} blocks, {stats['vertices']:,} vertices, "
+            f"{stats['faces']:,} triangles, written to {folder} ({MANIFEST}, live.json)"
+        )
+    return 0
+
+
+def _live_scans(args: argparse.Namespace, config):
+    """(name, points, viewpoints) of each scan: the inputs' (one file split into its scans),
+    then the files that appear in --follow's folder."""
+    import numpy as np
+
+    from . import io
+    from .errors import InputError
+    from .scans import follow, read_column, split_scans
+
+    def read(path: Path):
+        cloud = io.read_points(path)
+        viewpoints = cloud.viewpoints
+        if viewpoints is None and config.viewpoint is not None:
+            viewpoints = np.broadcast_to(np.asarray(config.viewpoint, float), cloud.points.shape)
+        if viewpoints is None:
+            raise InputError(
+                f"{path}: has no sensor positions (vp_x vp_y vp_z); a live scan needs them, "
+                "or --viewpoint"
+            )
+        return cloud.points, viewpoints
+
+    if len(args.input) == 1 and args.follow is None:
+        points, viewpoints = read(args.input[0])
+        by = args.split_by or "sensor"
+        column = None if by == "sensor" else read_column(args.input[0], by)
+        for k, rows in enumerate(split_scans(viewpoints, column=column, every=args.split_every)):
+            yield f"{args.input[0]}#{k}", points[rows], viewpoints[rows]
+        return
+    if args.split_by is not None:
+        raise InputError("--split-by cuts one input file into scans; several are a scan each")
+    for path in args.input:
+        yield str(path), *read(path)
+    if args.follow is not None:
+        suffixes = tuple(io.POINT_FORMATS)
+        for path in follow(args.follow, suffixes, idle=args.idle, seen=args.input):
+            yield str(path), *read(path)
 
 
 def _add_inspection_options(parser: argparse.ArgumentParser) -> None:

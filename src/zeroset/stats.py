@@ -91,6 +91,14 @@ SCHEMA = {
     "seam_disagreement": Count("share of seam points whose tiles' normals disagree", "once"),
     "seam_vertex_gap": Count("farthest two tiles put one vertex apart, data units", "once"),
     "worker_peak_mib": Count("peak memory of each Dask worker, MiB", "once"),
+    # live (zeroset.live)
+    "scans": Count("scans given"),
+    "scans_skipped": Count("scans left out whole: no usable points, or a sensor far off"),
+    "late_points": Count("points that fell into sealed blocks, left out"),
+    "blocks_finished": Count("blocks whose final mesh is made", "once"),
+    "block_dense_faces": Count("faces of the blocks' dense meshes before simplification"),
+    "blocks_drifted": Count("blocks whose own points would choose other parameters", "once"),
+    "peak_mib": Count("peak memory of the process so far, MiB", "once"),
 }
 
 

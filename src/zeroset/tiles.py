@@ -491,7 +491,7 @@ def reconstruct_tiled(
     stats["seam_disagreement"] = disagreement
     stats["tile_grid"] = [int(c) for c in counts]
     stats["tile_components_flipped"] = sum(len(flip) for flip in flips)
-    mesh, stats["seam_vertex_gap"] = _weld(pieces)
+    mesh, stats["seam_vertex_gap"] = weld_pieces(pieces)
     _warn_gap(stats["seam_vertex_gap"], parameters, "a neighbourhood reached beyond their halos")
     if not (is_edge_manifold(mesh.faces) and is_consistently_oriented(mesh.faces)):
         raise ReconstructionError(
@@ -622,7 +622,7 @@ def _with_rings(faces: np.ndarray, owner: np.ndarray, n_tiles: int, rings: int) 
     high = np.full(n_vertices, -1)
     np.minimum.at(low, faces.ravel(), np.repeat(owner, 3))
     np.maximum.at(high, faces.ravel(), np.repeat(owner, 3))
-    band = np.flatnonzero(_rings(faces, low != high, rings))
+    band = np.flatnonzero(face_rings(faces, low != high, rings))
     parts = []
     for k in range(n_tiles):
         own = owner == k
@@ -688,8 +688,8 @@ def _simplify_in_tiles(
     seam = np.bincount(index, minlength=welded.n_vertices) > 1
     if not seam.any():
         return welded, counts
-    band = _rings(welded.faces, seam, 2)
-    reach = _rings(welded.faces, seam, 3)  # one ring more: the reference goes on past it
+    band = face_rings(welded.faces, seam, 2)
+    reach = face_rings(welded.faces, seam, 3)  # one ring more: the reference goes on past it
     beneath = reach[under]
     ((reference, _),) = cut(dense, np.where(beneath, 0, -1), 1)
     (strip, strip_vertices), (rest, rest_vertices) = cut(welded, np.where(band, 0, 1), 2)
@@ -739,7 +739,7 @@ def _boundary_keys(mesh: Mesh, keys: np.ndarray, simple: Mesh) -> np.ndarray:
     return np.array([where.get(v.tobytes(), -1) for v in simple.vertices], dtype=np.int64)
 
 
-def _rings(faces: np.ndarray, marked: np.ndarray, rings: int) -> np.ndarray:
+def face_rings(faces: np.ndarray, marked: np.ndarray, rings: int) -> np.ndarray:
     """(F,) bool the faces within `rings` rings of the `marked` (V,) bool vertices: the
     faces with a marked vertex, then those with a vertex of those, and so on."""
     vertices = marked.copy()
@@ -867,11 +867,19 @@ def _chunks(source, crop, chunk_points=CHUNK_POINTS):
 
 
 def _fit_tile(source, tile: Tile, offset, parameters, config) -> TileFit | TileFailure | None:
-    """Read a tile, fit and orient its planes (a Dask task; the result stays on the worker),
-    with a wider halo where its neighbourhoods reach further than the halo allows."""
+    """Read a tile from `source` (a file or an array) and fit it (a Dask task; the result
+    stays on the worker): `fit_tile`."""
+    return fit_tile(partial(_read, source, crop=config.crop), tile, offset, parameters, config)
+
+
+def fit_tile(read, tile: Tile, offset, parameters, config) -> TileFit | TileFailure | None:
+    """Fit and orient the planes of a tile's points, ``read(box)`` (those (N, 3) inside
+    `box` (6,), input coordinates, and their sensor positions (N, 3) or None), with a wider
+    halo where its neighbourhoods reach further than the halo allows. None for a tile of
+    too few points to hold a surface."""
     base = tile.halo - len(LEVELS) * RADIUS_CAP * parameters.rho_delta
     for grown in range(GROW_ROUNDS + 1):
-        points, viewpoints = _read(source, tile.box, config.crop)
+        points, viewpoints = read(tile.box)
         if len(points) < max(MIN_TILE_POINTS, config.k_max):
             return None
         order = spatial_order(points)
@@ -991,9 +999,8 @@ def _contour_tile(
     flips: dict,
     parameters: Parameters,
     config: ReconstructionConfig,
-) -> Piece:
-    """Contour the cubes a tile owns (a Dask task): its `Piece`, and its whole oriented
-    surface (None for a tile with no surface), which its border is refined on."""
+) -> tuple[Piece, Surface | None]:
+    """`contour_fit` as a Dask task, its piece naming the worker."""
     import socket
 
     worker = socket.gethostname()
@@ -1001,6 +1008,20 @@ def _contour_tile(
         worker = require("distributed", "tiled reconstruction (--tiles)").get_worker().address
     except ValueError:
         pass
+    return contour_fit(fit, flips, parameters, config, worker=worker)
+
+
+def contour_fit(
+    fit: TileFit | TileFailure | None,
+    flips: dict,
+    parameters: Parameters,
+    config: ReconstructionConfig,
+    *,
+    worker: str = "",
+) -> tuple[Piece, Surface | None]:
+    """Contour the cubes a tile owns: its `Piece`, and its whole oriented surface (None
+    for a tile with no surface), which its border is refined on; `flips` negates the
+    normals of its orientation components ({component: -1.0}, `_agree`)."""
     if not isinstance(fit, TileFit):
         return Piece.empty(peak_mib(), worker), None
     fitted = fit.fitted
@@ -1043,7 +1064,7 @@ def _owned_surface(pieces) -> Surface:
     return type(owned[0]).concatenate(owned)
 
 
-def _weld(pieces) -> tuple[Mesh, float]:
+def weld_pieces(pieces) -> tuple[Mesh, float]:
     """One mesh of the tiles' pieces: vertices shared by global edge key, faces in cube
     order; and how far apart two tiles put one vertex (0 when their halos held all that
     its corners' values depend on)."""

@@ -1,0 +1,235 @@
+"""Live reconstruction: a pipe run replayed scan by scan, against the batch run.
+
+Run by hand from the repository root (about 10 minutes on 2 cores)::
+
+    python benchmarks/bench_live.py
+
+A pipe run of radius 0.2 m with two bends (20 m, and 40 m for the memory), scanned by the
+in-pipe model (`zeroset.synthetic.scan_pipe_run`) at a station every 0.5 m, each station's
+scan made just before it is given to `zeroset.live.LiveReconstruction.add`, in a process
+of its own, so that its peak memory is the live run's and one scan's. The batch run
+(`zeroset.reconstruct` of every scan's points with their sensor positions) runs in another
+process. Per scan: the seconds of `add` (median, 95th percentile, largest). The final mesh
+against the batch one: components and boundary loops, the mean distance between them each
+way (100,000 samples a surface), and each one's Chamfer-L1 to the true pipe. The section
+between ``<!-- live:begin -->`` and ``<!-- live:end -->`` of docs/benchmarks.md is
+replaced.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+import tempfile
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+from _docfile import replace_section
+from bench_phase1 import DEFAULT_OUTPUT, machine_info, reproduce_lines
+
+from zeroset import reconstruct
+from zeroset._progress import peak_mib
+from zeroset.evaluate import compare_to_reference
+from zeroset.live import LiveReconstruction
+from zeroset.synthetic import PipePath, scan_pipe_run
+from zeroset.topology import boundary_loops, face_components
+from zeroset.types import Mesh
+
+RADIUS = 0.2
+SPACING = 0.5
+ROTATION_STEP = 2.3  # degrees: about 100,000 points a station
+LENGTHS = (20.0, 40.0)
+BEND_RADIUS = 1.2
+
+
+def path_of(length: float) -> PipePath:
+    """A run of `length` metres: a leg, a bend right, a leg, a bend left, a leg."""
+    bends = 2 * (0.5 * np.pi * BEND_RADIUS)
+    legs = (length - bends) * np.array([0.35, 0.35, 0.30])
+    return PipePath.build(
+        [("straight", legs[0]), ("bend", BEND_RADIUS, 90.0, 90.0),
+         ("straight", legs[1]), ("bend", BEND_RADIUS, 90.0, 270.0), ("straight", legs[2])]
+    )  # fmt: skip
+
+
+def stations(length: float) -> np.ndarray:
+    return np.arange(0.5 * SPACING, length - 0.25 * SPACING, SPACING)
+
+
+def scan(path: PipePath, station: float, k: int):
+    """The scan of station `station` (its own seed `k`)."""
+    return scan_pipe_run(
+        path, radius=RADIUS, stations=[station], rotation_step=ROTATION_STEP, rng=k
+    )
+
+
+def warm_up() -> None:
+    """Compile the kernels on a short run, so that no scan's time holds compilation."""
+    path = PipePath.build([("straight", 3.0)])
+    live = LiveReconstruction(reach=1.0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for k, s in enumerate(np.arange(0.25, 3.0, 0.5)):
+            part = scan_pipe_run(path, radius=RADIUS, stations=[s], rotation_step=8.0, rng=k)
+            live.add(part.points, part.viewpoints)
+        live.close()
+
+
+def replay(length: float, out: Path) -> None:
+    """The live run of `length` metres; its figures to `out` (JSON), its mesh beside it."""
+    warm_up()
+    path = path_of(length)
+    seconds, points, finished, waiting = [], 0, [], []
+    live = LiveReconstruction()
+    made = 0.0
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        for k, s in enumerate(stations(length)):
+            start = time.perf_counter()
+            part = scan(path, s, k)
+            made += time.perf_counter() - start
+            update = live.add(part.points, part.viewpoints)
+            seconds.append(update.seconds)
+            finished.append(len(update.finished))
+            waiting.append(update.waiting)
+            points += part.points.shape[0]
+            del part
+        closing = live.close()
+    mesh = live.mesh()
+    np.savez(out.with_suffix(".npz"), vertices=mesh.vertices, faces=mesh.faces)
+    out.write_text(json.dumps({
+        "length": length, "scans": len(seconds), "points": points, "seconds": seconds,
+        "finished": finished, "waiting": waiting, "close": closing.seconds, "peak_mib": peak_mib(),
+        "stats": live.summary(), "timings": {k: v for k, v in live.timings.items() if k != "scans"},
+        "warnings": sorted({str(w.message) for w in caught}), "generated": made,
+        "parameters": [live.parameters.rho_delta, live.parameters.cube_size],
+    }, default=float))  # fmt: skip
+
+
+def batch(length: float, out: Path) -> None:
+    """The batch run of the same scans; its figures to `out`, its mesh beside it."""
+    path = path_of(length)
+    parts = [scan(path, s, k) for k, s in enumerate(stations(length))]
+    points = np.concatenate([p.points for p in parts])
+    viewpoints = np.concatenate([p.viewpoints for p in parts])
+    del parts
+    start = time.perf_counter()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        result = reconstruct(points, viewpoints=viewpoints)
+    wall = time.perf_counter() - start
+    mesh = result.mesh
+    np.savez(out.with_suffix(".npz"), vertices=mesh.vertices, faces=mesh.faces)
+    out.write_text(json.dumps({
+        "seconds": wall, "points": int(points.shape[0]), "peak_mib": peak_mib(),
+        "parameters": [result.parameters.rho_delta, result.parameters.cube_size],
+    }))  # fmt: skip
+
+
+def _child(mode: str, length: float, folder: Path) -> dict:
+    """Run `mode` for `length` in a process of its own; its figures."""
+    out = folder / f"{mode}-{length:g}.json"
+    subprocess.run(
+        [sys.executable, __file__, f"--{mode}", str(length), "--json", str(out)], check=True
+    )
+    return json.loads(out.read_text()) | {"mesh": out.with_suffix(".npz")}
+
+
+def _mesh(path: Path) -> Mesh:
+    data = np.load(path)
+    return Mesh(vertices=data["vertices"], faces=data["faces"])
+
+
+def _shape(mesh: Mesh) -> str:
+    components = face_components(mesh.faces, mesh.n_vertices)[0]
+    return f"{components} / {len(boundary_loops(mesh.faces))}"
+
+
+def report(runs: dict, batch_run: dict, truth: Mesh, machine: dict, command: str) -> str:
+    """The markdown section."""
+    lines = ["## Live: a pipe run replayed scan by scan", ""]
+    lines += reproduce_lines(command, machine, "about 10 minutes")[:6]
+    first = runs[LENGTHS[0]]
+    lines += [
+        f"A pipe run of radius {RADIUS} m with two bends (bend radius {BEND_RADIUS} m), "
+        f"scanned by the in-pipe model at a station every {SPACING} m (rotation step "
+        f"{ROTATION_STEP} degrees), each scan given to `LiveReconstruction.add` with its "
+        "sensor positions as soon as it is made (defaults: parameters measured from the "
+        "first scans, reach the longest range seen, no previews). Seconds per scan are "
+        "those of `add`, making the scan left out; peak memory is the process's "
+        "resident peak.",
+        "",
+        "| run | scans | points | per scan median s | p95 s | largest s | close s | "
+        "blocks | triangles | peak MiB |",
+        "|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for length, run in runs.items():
+        s = np.asarray(run["seconds"])
+        lines.append(
+            f"| {length:g} m | {run['scans']} | {run['points']:,} | {np.median(s):.2f} | "
+            f"{np.quantile(s, 0.95):.2f} | {s.max():.2f} | {run['close']:.1f} | "
+            f"{run['stats']['blocks_finished']} | {run['stats']['faces']:,} | "
+            f"{run['peak_mib']:,.0f} |"
+        )
+    ratio = runs[LENGTHS[1]]["peak_mib"] / first["peak_mib"]
+    lines += ["", f"Peak memory, {LENGTHS[1]:g} m over {LENGTHS[0]:g} m: {ratio:.2f}x.", ""]
+    live_mesh, batch_mesh = _mesh(first["mesh"]), _mesh(batch_run["mesh"])
+    between = compare_to_reference(live_mesh, batch_mesh, n_samples=100_000)
+    live_truth = compare_to_reference(live_mesh, truth, n_samples=100_000)["chamfer_l1"]
+    batch_truth = compare_to_reference(batch_mesh, truth, n_samples=100_000)["chamfer_l1"]
+    stage_seconds = ", ".join(f"{k} {v:.0f}" for k, v in first["timings"].items())
+    lines += [
+        f"The {LENGTHS[0]:g} m run against the batch run of the same points "
+        f"({batch_run['seconds']:.0f} s, peak {batch_run['peak_mib']:,.0f} MiB; the live "
+        f"run's stages, s: {stage_seconds}):",
+        "",
+        "| | live | batch |",
+        "|---|---|---|",
+        f"| rho+delta, cube (mm) | {first['parameters'][0] * 1e3:.1f}, "
+        f"{first['parameters'][1] * 1e3:.1f} | {batch_run['parameters'][0] * 1e3:.1f}, "
+        f"{batch_run['parameters'][1] * 1e3:.1f} |",
+        f"| triangles | {live_mesh.n_faces:,} | {batch_mesh.n_faces:,} |",
+        f"| components / boundary loops | {_shape(live_mesh)} | {_shape(batch_mesh)} |",
+        f"| mean distance to the other (mm) | {between['accuracy']['mean'] * 1e3:.3f} | "
+        f"{between['completeness']['mean'] * 1e3:.3f} |",
+        f"| Chamfer-L1 to the truth (mm) | {live_truth * 1e3:.3f} | {batch_truth * 1e3:.3f} |",
+        "",
+        f"Chamfer-L1, live over batch: {live_truth / batch_truth:.3f}.",
+        "",
+    ]
+    if first["warnings"]:
+        lines += ["Warnings of the live run:", ""]
+        lines += [f"- {w}" for w in first["warnings"]] + [""]
+    lines += reproduce_lines(command, machine)[6:]
+    return "\n".join(lines)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--replay", type=float, help=argparse.SUPPRESS)
+    parser.add_argument("--batch", type=float, help=argparse.SUPPRESS)
+    parser.add_argument("--json", type=Path, help=argparse.SUPPRESS)
+    parser.add_argument("--output", type=Path, default=DEFAULT_OUTPUT)
+    args = parser.parse_args()
+    if args.replay is not None:
+        return replay(args.replay, args.json)
+    if args.batch is not None:
+        return batch(args.batch, args.json)
+    with tempfile.TemporaryDirectory() as folder:
+        folder = Path(folder)
+        runs = {length: _child("replay", length, folder) for length in LENGTHS}
+        batch_run = _child("batch", LENGTHS[0], folder)
+        truth = scan_pipe_run(
+            path_of(LENGTHS[0]), radius=RADIUS, stations=[1.0], rotation_step=30.0, rng=0
+        ).truth
+        text = report(runs, batch_run, truth, machine_info(), "python benchmarks/bench_live.py")
+    replace_section(args.output, "live", text)
+    print(text)
+
+
+if __name__ == "__main__":
+    main()
