@@ -234,7 +234,14 @@ class LiveReconstruction:
         self._welded_vertices = 0
         self._faces = 0
         self._drift: list = []  # (block, rho_delta, noise) its own points would choose
-        self.stats: dict = {"scans": 0, "scans_skipped": 0, "late_points": 0}
+        self.stats: dict = {
+            "scans": 0,
+            "scans_skipped": 0,
+            "late_points": 0,
+            "blocks_moved_at_seams": 0,
+            "small_holes_filled": 0,
+            "small_components_dropped": 0,
+        }
         self.timings: dict = {}
         self.skipped: list = []  # (scan, reason)
         self._scans = 0
@@ -312,6 +319,23 @@ class LiveReconstruction:
             stats = self.summary()
             warn_surface_changes(stats, self.config)
             self._warn_drift()
+            if stats["blocks_moved_at_seams"]:
+                warnings.warn(
+                    f"{stats['blocks_moved_at_seams']} block(s) had seam vertices up to "
+                    f"{stats['seam_vertex_gap']:.3g} from their neighbours' copies, more "
+                    "than rounding explains (a fit there reaches beyond the halo); they "
+                    "were moved onto them",
+                    SurfaceWarning,
+                    stacklevel=2,
+                )
+            if stats["small_holes_filled"] or stats["small_components_dropped"]:
+                warnings.warn(
+                    "the counts of holes closed and components dropped are summed over "
+                    "the blocks' regions (a block and its neighbours): one near a seam "
+                    "counts once in each region that holds it",
+                    SurfaceWarning,
+                    stacklevel=2,
+                )
         else:
             finished = {}
         return ScanUpdate(-1, 0, None, 0, finished, {}, time.perf_counter() - start)
@@ -742,13 +766,7 @@ class LiveReconstruction:
                 pair = (self._position[n], position)
                 self._seams[pair] = self._seams.get(pair, 0) + int(np.count_nonzero(close))
         if gap > SEAM_TOLERANCE * self.parameters.cube_size:
-            warnings.warn(
-                f"block {index}: a seam vertex lies {gap:.3g} from its neighbour's copy, "
-                "more than rounding explains (a fit there reaches beyond the halo); it is "
-                "moved onto it",
-                SurfaceWarning,
-                stacklevel=4,
-            )
+            self.stats["blocks_moved_at_seams"] += 1
         self.stats["seam_vertex_gap"] = max(self.stats.get("seam_vertex_gap", 0.0), gap)
         self._welded_vertices += piece.n_vertices - int(np.count_nonzero(matched))
         return Mesh(vertices=vertices, faces=piece.faces)
