@@ -77,11 +77,12 @@ BLOCK_CUBES = 40
 #: Largest distance, over the cube size, at which two finished blocks' copies of a seam
 #: vertex are taken for one, the later moved onto the earlier. Both come from the same
 #: dense vertex refined on two blocks' fits, which agree to rounding where every fit a
-#: value depends on lies within the halo; on sparse scans some reach further (an 8-degree
-#: scan: the two fits 5.5e-6 m apart at a seam, 1e-16 with a halo of 32 rho+delta), so
-#: the copies can differ by micrometres, far below the surface's own uncertainty. Past
-#: ``SEAM_TOLERANCE`` a warning gives the gap.
-SEAM_MATCH = 1e-3
+#: value depends on lies within the halo; on sparse scans and at bends some reach further
+#: (an 8-degree scan: the two fits 5.5e-6 m apart at a seam, 1e-16 with a halo of 32
+#: rho+delta; the 20 m benchmark run's bends: copies 0.05 mm apart, 0.002 cubes), so the
+#: copies can differ by far more than rounding, and still far less than the surface's
+#: own uncertainty (0.1-0.3 mm there). Past ``SEAM_TOLERANCE`` a warning gives the gap.
+SEAM_MATCH = 1e-2
 #: Seconds of block work an `add` does by default (``budget``): a scan's blocks then
 #: spread over the scans that follow, as long as the scans leave the time.
 BUDGET = 1.0
@@ -759,6 +760,9 @@ class LiveReconstruction:
                 continue
             distance, row = build_tree(other.boundary).query(vertices[ends])
             close = distance <= SEAM_MATCH * self.parameters.cube_size
+            # One to one: a copy two of this block's vertices are near is neither's.
+            taken = np.bincount(row[close], minlength=other.boundary.shape[0])
+            close &= taken[row] == 1
             if close.any():
                 vertices[ends[close]] = other.boundary[row[close]]
                 matched[ends[close]] = True
