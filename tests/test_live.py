@@ -101,6 +101,24 @@ def test_blocks_built_live_equal_blocks_built_in_one_run(scans, live_run):
 
 
 @pytest.mark.slow
+def test_work_left_by_the_budget_waits_and_gives_the_same_blocks(scans, live_run):
+    live, blocks, _ = live_run
+    lagging = LiveReconstruction(reach=RANGE, block_cubes=BLOCK_CUBES, budget=0.0)
+    later, waiting = {}, []
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", SurfaceWarning)
+        for points, viewpoints in scans:
+            update = lagging.add(points, viewpoints)
+            later.update(update.finished)
+            waiting.append(update.waiting)
+        later.update(lagging.close().finished)
+    assert max(waiting) >= 2 and lagging.waiting() == 0  # one block's work a scan
+    assert sorted(later) == sorted(blocks)
+    for index, mesh in blocks.items():
+        assert_same_mesh(mesh, later[index])
+
+
+@pytest.mark.slow
 def test_the_live_mesh_is_the_open_pipe(scans, live_run):
     live, blocks, _ = live_run
     mesh = live.mesh()

@@ -307,7 +307,8 @@ class LiveReconstruction:
             )
         seconds = time.perf_counter() - start
         self.timings.setdefault("scans", []).append(seconds)
-        return ScanUpdate(number, points.shape[0] - late, None, late, finished, previewed, seconds)
+        used = points.shape[0] - late
+        return ScanUpdate(number, used, None, late, finished, previewed, seconds, self.waiting())
 
     def close(self) -> ScanUpdate:
         """Finish every block left (no more scans come) and return what that changed."""
