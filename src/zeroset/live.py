@@ -79,9 +79,9 @@ BLOCK_CUBES = 40
 #: dense vertex refined on two blocks' fits, which agree to rounding where every fit a
 #: value depends on lies within the halo; on sparse scans and at bends some reach further
 #: (an 8-degree scan: the two fits 5.5e-6 m apart at a seam, 1e-16 with a halo of 32
-#: rho+delta; the 20 m benchmark run's bends: copies 0.05 mm apart, 0.002 cubes), so the
-#: copies can differ by far more than rounding, and still far less than the surface's
-#: own uncertainty (0.1-0.3 mm there). Past ``SEAM_TOLERANCE`` a warning gives the gap.
+#: rho+delta; the 20 m benchmark run's bends: copies up to 0.18 mm, 0.007 cubes, apart,
+#: about the surface's own uncertainty there, half the tolerance of 0.32 mm). Past
+#: ``SEAM_TOLERANCE`` a warning gives the largest gap.
 SEAM_MATCH = 1e-2
 #: Seconds of block work an `add` does by default (``budget``): a scan's blocks then
 #: spread over the scans that follow, as long as the scans leave the time.
@@ -240,6 +240,7 @@ class LiveReconstruction:
             "scans_skipped": 0,
             "late_points": 0,
             "blocks_moved_at_seams": 0,
+            "blocks_failed": 0,
             "small_holes_filled": 0,
             "small_components_dropped": 0,
         }
@@ -636,6 +637,10 @@ class LiveReconstruction:
         except _NotYet:
             block.stuck = True  # until the next scan seals more
             return
+        except ReconstructionError as error:
+            block.contoured = True  # with no piece: a gap in the mesh
+            self._left_out(index, str(error))
+            return
         block.piece, block.surface, block.contoured = piece, surface, True
         add_counts(self.stats, {k: v for k, v in piece.counts.items() if k in _BLOCK_COUNTS})
         if fit is not None:
@@ -703,7 +708,8 @@ class LiveReconstruction:
             mesh = stages.run("repair", repair, mesh, self.parameters, self.config)
             if self.config.rim == "data":
                 mesh = stages.run("rim", trim_rim, mesh, support, self.parameters, self.config)
-        except ReconstructionError:
+        except ReconstructionError as error:
+            self._left_out(index, str(error))
             return None
         owner = self._face_blocks(mesh) == np.asarray(index)
         own = owner.all(axis=1)
@@ -725,6 +731,13 @@ class LiveReconstruction:
             self.timings[name] = self.timings.get(name, 0.0) + seconds
         _time(self.timings, "finish", start)
         return piece
+
+    def _left_out(self, index, reason: str) -> None:
+        """Count and warn of block `index` left out of the mesh, a gap, for `reason`."""
+        self.stats["blocks_failed"] += 1
+        warnings.warn(
+            f"block {index} left out, a gap in the mesh: {reason}", SurfaceWarning, stacklevel=4
+        )
 
     def _face_blocks(self, mesh: Mesh) -> np.ndarray:
         """(F, 3) the block index of the cube holding each face's centroid."""

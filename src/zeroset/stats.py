@@ -97,6 +97,7 @@ SCHEMA = {
     "late_points": Count("points that fell into sealed blocks, left out"),
     "blocks_finished": Count("blocks whose final mesh is made", "once"),
     "block_dense_faces": Count("faces of the blocks' dense meshes before simplification"),
+    "blocks_failed": Count("blocks left out, a gap in the mesh: their fit or rim found no surface"),
     "blocks_moved_at_seams": Count("blocks whose seam vertices were moved past rounding"),
     "blocks_drifted": Count("blocks whose own points would choose other parameters", "once"),
     "peak_mib": Count("peak memory of the process so far, MiB", "once"),
