@@ -307,3 +307,14 @@ def test_a_kill_leaves_every_finished_block_whole(tmp_path, scans):
     mesh = read_tile_meshes(out)  # the pieces weld into what the manifest states
     assert mesh.n_faces == manifest["faces"]
     assert np.abs(_radial(mesh.vertices)).mean() < 1e-3
+
+
+def test_a_block_whose_fit_fails_is_left_out_with_a_warning():
+    # Scattered points, none with four others within rho+delta: every one an outlier.
+    points = np.random.default_rng(2).uniform(0.0, 0.5, (80, 3))
+    live = LiveReconstruction(rho_delta=0.01, cube_size=0.015)
+    live.add(points, np.zeros(3))
+    with pytest.warns(SurfaceWarning, match=r"block \(.*\) left out, a gap in the mesh"):
+        update = live.close()
+    assert update.finished == {} and live.summary()["blocks_failed"] >= 1
+    assert live.mesh().n_faces == 0
