@@ -175,9 +175,15 @@ def test_bad_scans_are_reported_and_skipped(scans):
         live.add(points[:, :2], viewpoints)
     with pytest.raises(InputError, match="viewpoint must be"):
         live.add(points, viewpoints[:5])
+    holes = points.copy()
+    holes[:7] = np.nan  # beams with no return
+    assert live.add(holes, viewpoints).points == points.shape[0] - 7
     stats = live.summary()
-    assert stats["scans"] == 6 and stats["scans_skipped"] == 3
+    assert stats["scans"] == 7 and stats["scans_skipped"] == 3
+    assert stats["nonfinite_points"] == 7  # the first scan's 100 went with the scan
     assert [k for k, _ in live.skipped] == [0, 2, 3]
+    with pytest.warns(SurfaceWarning, match="7 point.s. of the scans were not finite"):
+        live.close()
 
 
 @pytest.mark.parametrize(

@@ -239,6 +239,8 @@ class LiveReconstruction:
             "scans": 0,
             "scans_skipped": 0,
             "late_points": 0,
+            "nonfinite_points": 0,
+            "cropped": 0,
             "blocks_moved_at_seams": 0,
             "blocks_failed": 0,
             "small_holes_filled": 0,
@@ -331,6 +333,13 @@ class LiveReconstruction:
                     SurfaceWarning,
                     stacklevel=2,
                 )
+            if stats["nonfinite_points"]:
+                warnings.warn(
+                    f"{stats['nonfinite_points']} point(s) of the scans were not finite "
+                    "(a beam with no return) and were left out",
+                    SurfaceWarning,
+                    stacklevel=2,
+                )
             if stats["small_holes_filled"] or stats["small_components_dropped"]:
                 warnings.warn(
                     "the counts of holes closed and components dropped are summed over "
@@ -393,12 +402,15 @@ class LiveReconstruction:
             raise InputError(str(error)) from error
         if not np.isfinite(viewpoints).all():
             return points, viewpoints, "its sensor position is not finite"
-        usable = np.isfinite(points).all(axis=1)
+        finite = np.isfinite(points).all(axis=1)
+        usable = finite.copy()
         if self.config.crop is not None:
             crop = np.asarray(self.config.crop)
             usable &= np.all((points >= crop[:3]) & (points <= crop[3:]), axis=1)
         if not usable.any():
             return points, viewpoints, "no usable points (none finite and inside the crop)"
+        self.stats["nonfinite_points"] += int(finite.size - np.count_nonzero(finite))
+        self.stats["cropped"] += int(np.count_nonzero(finite & ~usable))
         return points[usable], np.ascontiguousarray(viewpoints[usable]), None
 
     def _jump(self, sensor: np.ndarray) -> str | None:

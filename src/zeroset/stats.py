@@ -95,6 +95,7 @@ SCHEMA = {
     "scans": Count("scans given"),
     "scans_skipped": Count("scans left out whole: no usable points, or a sensor far off"),
     "late_points": Count("points that fell into sealed blocks, left out"),
+    "nonfinite_points": Count("points of the scans that were not finite, left out"),
     "blocks_finished": Count("blocks whose final mesh is made", "once"),
     "block_dense_faces": Count("faces of the blocks' dense meshes before simplification"),
     "blocks_failed": Count("blocks left out, a gap in the mesh: their fit or rim found no surface"),
