@@ -20,7 +20,7 @@ from zeroset.errors import InputError, SurfaceWarning
 from zeroset.evaluate import closest_points_on_mesh
 from zeroset.live import LiveReconstruction
 from zeroset.scans import follow, split_scans
-from zeroset.synthetic import PipePath, scan_pipe_run
+from zeroset.synthetic import Defect, PipePath, scan_pipe_run
 from zeroset.tile_output import MANIFEST, read_tile_meshes
 from zeroset.topology import (
     boundary_loops,
@@ -37,12 +37,19 @@ LENGTH = 4.0
 BLOCK_CUBES = 16
 
 
-def _scans():
+def _scans(rotation_step=8.0, defects=()):
     """Scans of a straight open pipe along x, a station every 0.5 m, each within RANGE."""
     path = PipePath.build([("straight", LENGTH)])
     scans = []
     for k, station in enumerate(np.arange(0.25, LENGTH, 0.5)):
-        scan = scan_pipe_run(path, radius=RADIUS, stations=[station], rotation_step=8.0, rng=k)
+        scan = scan_pipe_run(
+            path,
+            radius=RADIUS,
+            stations=[station],
+            rotation_step=rotation_step,
+            defects=defects,
+            rng=k,
+        )
         near = np.linalg.norm(scan.points - scan.viewpoints, axis=1) <= RANGE
         scans.append((scan.points[near], scan.viewpoints[near]))
     return scans
@@ -324,3 +331,27 @@ def test_a_block_whose_fit_fails_is_left_out_with_a_warning():
         update = live.close()
     assert update.finished == {} and live.summary()["blocks_failed"] >= 1
     assert live.mesh().n_faces == 0
+
+
+@pytest.mark.slow
+def test_the_final_inspection_finds_the_dent_the_batch_run_finds(tmp_path):
+    dent = Defect("dent", 2.0, 90.0, 0.015, 0.1)
+    source = _scan_file(tmp_path, _scans(rotation_step=4.0, defects=(dent,)))
+    live, batch = tmp_path / "live", tmp_path / "batch"
+    assert main(["live", str(source), "-o", str(tmp_path / "out"), "--split-every", "0.3",
+                 "--reach", str(RANGE), "--block-cubes", str(BLOCK_CUBES), "--inspect",
+                 str(live), "--quiet"]) == 0  # fmt: skip
+    assert main(["reconstruct", str(source), "-o", str(tmp_path / "mesh.ply"), "--inspect",
+                 str(batch), "--quiet"]) == 0  # fmt: skip
+    rows = [
+        np.genfromtxt(
+            folder / "defects.csv", delimiter=",", names=True, dtype=None, encoding="utf-8", ndmin=1
+        )  # fmt: skip
+        for folder in (live, batch)
+    ]
+    assert [r.size for r in rows] == [1, 1] and all(r["kind"][0] == "dent" for r in rows)
+    for r in rows:  # each where the dent is, as deep
+        assert abs(r["axial_m"][0] - dent.axial) < 0.03
+        assert abs(r["clock_deg"][0] - dent.clock) < 5.0
+        assert abs(-r["depth_mm"][0] - 1e3 * dent.depth) < 1.0
+    assert abs(rows[0]["depth_mm"][0] - rows[1]["depth_mm"][0]) < 0.5

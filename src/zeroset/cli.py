@@ -507,6 +507,12 @@ def _live_command(commands, parents) -> None:
         "--preview", type=float, default=0.0, metavar="DISTANCE", help="re-mesh the open "
         "blocks the newest scan reached within this distance of its sensor (default: 0, none)",
     )  # fmt: skip
+    parser.add_argument(
+        "--inspect", type=Path, metavar="DIR", help="once the scans are done, inspect the "
+        "welded mesh as a pipe with every scan's points, read again (see 'zeroset inspect'), "
+        "and write the results to DIR",
+    )  # fmt: skip
+    _add_inspection_options(parser)
     _add_config_options(parser)
     parser.set_defaults(command="live", run=_run_live)
 
@@ -535,6 +541,11 @@ def _run_live(args: argparse.Namespace) -> int:
             old.unlink(missing_ok=True)
     for source in args.input:
         io.check_input(source)
+    if args.inspect is not None:
+        from .inspect._pictures import picture_modules
+
+        picture_modules()  # a missing extra stops the run here, not after it
+        _check_outputs(_inspection_files(args.inspect), args.input, force=args.force)
     config = ReconstructionConfig().with_overrides(**_config_overrides(args))
     live = LiveReconstruction(
         config,
@@ -544,12 +555,12 @@ def _run_live(args: argparse.Namespace) -> int:
         folder=folder,
         preview=args.preview,
     )
-    seconds, names = [], []
+    seconds, names, files = [], [], []
     bar = tqdm(
         desc="scans", unit="scan", leave=False, disable=args.quiet or not sys.stderr.isatty()
     )
     start = time.perf_counter()
-    for name, points, viewpoints in _live_scans(args, config):
+    for name, points, viewpoints in _live_scans(args, config, files):
         update = live.add(points, viewpoints)
         seconds.append(update.seconds)
         names.append(name)
@@ -575,6 +586,13 @@ def _run_live(args: argparse.Namespace) -> int:
         "total_seconds": time.perf_counter() - start,
     }  # fmt: skip
     io.write_json(report_path, report)
+    if args.inspect is not None:
+        mesh = live.mesh()
+        clouds = [_live_cloud(path, config) for path in files]
+        points = np.concatenate([c[0] for c in clouds])
+        viewpoints = np.concatenate([c[1] for c in clouds])
+        inspection, pictures = _inspect(args, mesh, points, viewpoints)
+        _write_inspection(args, args.inspect, mesh, points, inspection, pictures)
     if not args.quiet:
         median = float(np.median(seconds)) if seconds else 0.0
         print(
@@ -588,29 +606,15 @@ def _run_live(args: argparse.Namespace) -> int:
     return 0
 
 
-def _live_scans(args: argparse.Namespace, config):
+def _live_scans(args: argparse.Namespace, config, files: list):
     """(name, points, viewpoints) of each scan: the inputs' (one file split into its scans),
-    then the files that appear in --follow's folder."""
-    import numpy as np
-
-    from . import io
+    then the files that appear in --follow's folder; each file read goes into `files`."""
     from .errors import InputError
     from .scans import follow, read_column, split_scans
 
-    def read(path: Path):
-        cloud = io.read_points(path)
-        viewpoints = cloud.viewpoints
-        if viewpoints is None and config.viewpoint is not None:
-            viewpoints = np.broadcast_to(np.asarray(config.viewpoint, float), cloud.points.shape)
-        if viewpoints is None:
-            raise InputError(
-                f"{path}: has no sensor positions (vp_x vp_y vp_z); a live scan needs them, "
-                "or --viewpoint"
-            )
-        return cloud.points, viewpoints
-
     if len(args.input) == 1 and args.follow is None:
-        points, viewpoints = read(args.input[0])
+        points, viewpoints = _live_cloud(args.input[0], config)
+        files.append(args.input[0])
         by = args.split_by or "sensor"
         column = None if by == "sensor" else read_column(args.input[0], by)
         for k, rows in enumerate(split_scans(viewpoints, column=column, every=args.split_every)):
@@ -619,11 +623,34 @@ def _live_scans(args: argparse.Namespace, config):
     if args.split_by is not None:
         raise InputError("--split-by cuts one input file into scans; several are a scan each")
     for path in args.input:
-        yield str(path), *read(path)
+        files.append(path)
+        yield str(path), *_live_cloud(path, config)
     if args.follow is not None:
-        suffixes = tuple(io.POINT_FORMATS)
-        for path in follow(args.follow, suffixes, idle=args.idle, seen=args.input):
-            yield str(path), *read(path)
+        from . import io
+
+        for path in follow(args.follow, tuple(io.POINT_FORMATS), idle=args.idle, seen=args.input):
+            files.append(path)
+            yield str(path), *_live_cloud(path, config)
+
+
+def _live_cloud(path: Path, config) -> tuple:
+    """The points (N, 3) of a scan file and their sensor positions (N, 3): the file's, or
+    ``--viewpoint`` for every point."""
+    import numpy as np
+
+    from . import io
+    from .errors import InputError
+
+    cloud = io.read_points(path)
+    viewpoints = cloud.viewpoints
+    if viewpoints is None and config.viewpoint is not None:
+        viewpoints = np.broadcast_to(np.asarray(config.viewpoint, float), cloud.points.shape)
+    if viewpoints is None:
+        raise InputError(
+            f"{path}: has no sensor positions (vp_x vp_y vp_z); a live scan needs them, "
+            "or --viewpoint"
+        )
+    return cloud.points, viewpoints
 
 
 def _add_inspection_options(parser: argparse.ArgumentParser) -> None:
