@@ -26,6 +26,7 @@ import sys
 import tempfile
 import time
 import warnings
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -129,8 +130,9 @@ def batch(length: float, out: Path) -> None:
     wall = time.perf_counter() - start
     mesh = result.mesh
     np.savez(out.with_suffix(".npz"), vertices=mesh.vertices, faces=mesh.faces)
-    like = {"parameters": result.parameters, "origin": result.offset,
-            "tolerance": result.stats["tolerance"]}  # fmt: skip
+    model = result.stats["noise_model"]
+    held = replace(result.parameters, noise_model=(model["intercept"], model["slope"]))
+    like = {"parameters": held, "origin": result.offset, "tolerance": result.stats["tolerance"]}
     out.with_suffix(".pickle").write_bytes(pickle.dumps(like))
     out.write_text(json.dumps({
         "seconds": wall, "points": int(points.shape[0]), "peak_mib": peak_mib(),
@@ -203,7 +205,7 @@ def report(runs, batch_run, alike, previewed, truth: Mesh, machine: dict, comman
         f"The {LENGTHS[0]:g} m run against the batch run of the same points "
         f"({batch_run['seconds']:.0f} s, peak {batch_run['peak_mib']:,.0f} MiB; the live "
         f"run's stages, s: {stage_seconds}); and the live run given the batch run's "
-        "parameters, tolerance and lattice origin:",
+        "parameters, range-noise model, tolerance and lattice origin:",
         "",
         "| | live | live on the batch's lattice | batch |",
         "|---|---|---|---|",

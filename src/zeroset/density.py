@@ -217,7 +217,9 @@ def plane_variance(points, indices, distances, radius) -> np.ndarray:
     return smallest * counts / np.maximum(counts - 3, 1)
 
 
-def range_noise(points, neighbours, viewpoints, *, noise: float) -> tuple[np.ndarray, tuple]:
+def range_noise(
+    points, neighbours, viewpoints, *, noise: float, model=None
+) -> tuple[np.ndarray, tuple]:
     """Noise level (N,) of every point as a straight-line function of its range.
 
     A laser's noise grows with range. The RMS distance of each point's neighbourhood from
@@ -235,6 +237,8 @@ def range_noise(points, neighbours, viewpoints, *, noise: float) -> tuple[np.nda
         the cloud's `noise`, as do all points when fewer than RANGE_BINS have a sensor.
     noise : float
         The cloud's noise level (`Parameters.noise`).
+    model : (intercept, slope), optional
+        Use this model instead of fitting one (`Parameters.noise_model`).
 
     Returns
     -------
@@ -242,6 +246,21 @@ def range_noise(points, neighbours, viewpoints, *, noise: float) -> tuple[np.nda
     model : (a, b)
         Intercept (data units) and slope (per unit of range).
     """
+    ranges = np.linalg.norm(points - viewpoints, axis=1)
+    known = np.isfinite(ranges)
+    if model is None:
+        model = _fitted_model(points, neighbours, ranges, known, noise)
+    intercept, slope = (float(v) for v in model)
+    sigma = np.where(known, np.maximum(intercept + slope * ranges, 0.5 * noise), noise)
+    return sigma, (intercept, slope)
+
+
+def _fitted_model(points, neighbours, ranges, known, noise: float) -> tuple[float, float]:
+    """(intercept, slope) of `range_noise`'s line through the binned median residuals;
+    (`noise`, 0) where fewer than RANGE_BINS points have a sensor."""
+    order = np.argsort(ranges)[: np.count_nonzero(known)]
+    if order.size < RANGE_BINS:
+        return noise, 0.0
     residual = np.sqrt(
         plane_variance(
             points,
@@ -250,16 +269,10 @@ def range_noise(points, neighbours, viewpoints, *, noise: float) -> tuple[np.nda
             np.inf,
         )
     )
-    ranges = np.linalg.norm(points - viewpoints, axis=1)
-    known = np.isfinite(ranges)
-    order = np.argsort(ranges)[: np.count_nonzero(known)]
-    if order.size < RANGE_BINS:
-        return np.full(points.shape[0], noise), (noise, 0.0)
     bins = np.array_split(order, RANGE_BINS)
     centre = np.array([np.median(ranges[b]) for b in bins])
     level = np.array([np.median(residual[b]) for b in bins])
     slope, intercept = np.polyfit(centre, level, 1)
     if slope < 0.0:
         slope, intercept = 0.0, float(np.mean(level))
-    sigma = np.where(known, np.maximum(intercept + slope * ranges, 0.5 * noise), noise)
-    return sigma, (float(intercept), float(slope))
+    return float(intercept), float(slope)

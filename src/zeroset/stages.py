@@ -418,7 +418,13 @@ def measure_radii(cells: Cells, neighbours, parameters: Parameters, config) -> t
     from the sensor's range-noise model where the sensors are known."""
     noise, model = parameters.noise, None
     if cells.viewpoints is not None:
-        noise, model = range_noise(cells.points, neighbours, cells.viewpoints, noise=noise)
+        noise, model = range_noise(
+            cells.points,
+            neighbours,
+            cells.viewpoints,
+            noise=noise,
+            model=parameters.noise_model,
+        )
     sectors, _ = sector_distances(cells.points, neighbours.indices, neighbours.distances)
     spacing = local_spacing(sectors, neighbours)
     radii = point_radii(spacing, rho_delta=parameters.rho_delta, margin=config.noise_factor * noise)

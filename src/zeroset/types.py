@@ -115,6 +115,11 @@ class Parameters:
         fitted; 0 when the points are used as they are.
     notes : tuple of str
         One line per parameter: its value and where it came from.
+    noise_model : (intercept, slope) of float, or None
+        The range-noise model ``sigma(r) = intercept + slope r`` to use for every point with
+        a known sensor (`zeroset.density.range_noise`); None fits one to the points at hand.
+        Live blocks hold one, measured once, so that each block's radii follow one model
+        and not its own points' (`zeroset.live`).
     """
 
     rho_delta: float
@@ -125,6 +130,7 @@ class Parameters:
     quadric_noise: float
     averaging_cell: float = 0.0
     notes: tuple[str, ...] = field(default=())
+    noise_model: tuple[float, float] | None = None
 
 
 @dataclass(frozen=True, eq=False)
