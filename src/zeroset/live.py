@@ -79,12 +79,11 @@ __all__ = ["BLOCK_CUBES", "BUDGET", "LiveReconstruction", "ScanUpdate"]
 BLOCK_CUBES = 40
 #: Largest distance, over the cube size, at which two finished blocks' copies of a seam
 #: vertex are taken for one, the later moved onto the earlier. Both come from the same
-#: dense vertex refined on two blocks' fits, which agree to rounding where every fit a
-#: value depends on lies within the halo; on sparse scans and at bends some reach further
-#: (an 8-degree scan: the two fits 5.5e-6 m apart at a seam, 1e-16 with a halo of 32
-#: rho+delta; the 20 m benchmark run's bends: copies up to 0.18 mm, 0.007 cubes, apart,
-#: about the surface's own uncertainty there, half the tolerance of 0.32 mm). Past
-#: ``SEAM_TOLERANCE`` a warning gives the largest gap.
+#: dense vertex refined on two blocks' fits, which agree to rounding when the blocks hold
+#: one range-noise model (`Parameters.noise_model`). Given parameters without one, each
+#: block fits its own, and the copies differ (an 8-degree scan: fits 5.5e-6 m apart at a
+#: seam; the 20 m benchmark run's bends: copies up to 0.18 mm, 0.007 cubes, apart, about
+#: the surface's own uncertainty there). Past ``SEAM_TOLERANCE`` a warning gives the gap.
 SEAM_MATCH = 1e-2
 #: Seconds of block work an `add` does by default (``budget``): a scan's blocks then
 #: spread over the scans that follow, as long as the scans leave the time.
@@ -333,7 +332,8 @@ class LiveReconstruction:
                 warnings.warn(
                     f"{stats['blocks_moved_at_seams']} block(s) had seam vertices up to "
                     f"{stats['seam_vertex_gap']:.3g} from their neighbours' copies, more "
-                    "than rounding explains (a fit there reaches beyond the halo); they "
+                    "than rounding explains (the blocks' fits differ there: give parameters "
+                    "with a noise_model); they "
                     "were moved onto them",
                     SurfaceWarning,
                     stacklevel=2,
