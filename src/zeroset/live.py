@@ -54,7 +54,15 @@ from .stages import (
 from .stats import add_counts, declared
 from .surface import surface_kind
 from .thresholds import CHORD_NOISE
-from .tile_output import FORMAT, MANIFEST, check_folder, cut, read_tile_meshes, weld
+from .tile_output import (
+    FORMAT,
+    MANIFEST,
+    check_folder,
+    cut,
+    read_tile_meshes,
+    weld,
+    weld_coincident,
+)
 from .tiles import (
     HALO_CUBES,
     HALO_RADII,
@@ -364,7 +372,7 @@ class LiveReconstruction:
         if self.folder is not None and self._entries:
             parts.append(read_tile_meshes(self.folder))
         elif self._meshes:
-            parts.append(_weld_exact([self._meshes[b] for b in sorted(self._meshes)]))
+            parts.append(weld_coincident([self._meshes[b] for b in sorted(self._meshes)])[0])
             parts[0] = parts[0].translated(self._origin)
         pieces = [b.piece for b in self._blocks.values() if b.contoured and not b.finished]
         pieces = [p for p in pieces if p.faces.shape[0]]
@@ -798,7 +806,7 @@ class LiveReconstruction:
     def _seal_seams(self, index, piece: Mesh) -> Mesh:
         """`piece` with its boundary vertices that a finished neighbour's mesh holds moved
         onto that neighbour's copies (they agree to rounding), the seams counted."""
-        ends = distinct_boundary(piece)
+        ends = _boundary_vertices(piece)
         vertices = piece.vertices.copy()
         matched = np.zeros(piece.n_vertices, dtype=bool)
         gap = 0.0
@@ -828,7 +836,7 @@ class LiveReconstruction:
         """Keep block `index`'s final mesh (local frame): its boundary for the neighbours
         still to finish, the mesh itself, or its file and the manifest."""
         block = self._blocks[index]
-        block.boundary = piece.vertices[distinct_boundary(piece)]
+        block.boundary = piece.vertices[_boundary_vertices(piece)]
         self._position[index] = len(self._entries)
         self._faces += piece.n_faces
         tile = self._tile(index)
@@ -921,7 +929,7 @@ _BLOCK_COUNTS = frozenset(
 )
 
 
-def distinct_boundary(mesh: Mesh) -> np.ndarray:
+def _boundary_vertices(mesh: Mesh) -> np.ndarray:
     """(B,) the vertices of `mesh` on its boundary, in increasing order."""
     return np.unique(boundary_edges(mesh.faces))
 
@@ -934,13 +942,6 @@ def _box_distance(point: np.ndarray, low: np.ndarray, size: float) -> float:
 def _owned(tile: Tile, origin: np.ndarray, parameters: Parameters) -> list:
     """``[[x, y, z], [x, y, z]]`` corners of a block's cubes, input coordinates."""
     return [(origin + parameters.cube_size * np.asarray(e, float)).tolist() for e in tile.owned]
-
-
-def _weld_exact(meshes: list) -> Mesh:
-    """One mesh of `meshes`, vertices of the same coordinates merged."""
-    vertices = np.concatenate([m.vertices for m in meshes])
-    same = np.unique(vertices, axis=0, return_inverse=True)[1].reshape(-1)
-    return weld(meshes, np.split(same, np.cumsum([m.n_vertices for m in meshes])[:-1]))[0]
 
 
 def _time(timings: dict, name: str, start: float) -> None:

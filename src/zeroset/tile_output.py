@@ -32,6 +32,7 @@ __all__ = [
     "point_tiles",
     "read_tile_meshes",
     "weld",
+    "weld_coincident",
     "write_tile_meshes",
 ]
 
@@ -144,11 +145,7 @@ def read_tile_meshes(path) -> Mesh:
             positions.append(position)
     if not pieces:
         raise InputError(f"{manifest_path}: no tile holds a face")
-    # Vertices of the same coordinates are one: the seams' copies of a vertex.
-    vertices = np.concatenate([piece.vertices for piece in pieces])
-    same = np.unique(vertices, axis=0, return_inverse=True)[1].reshape(-1)
-    cuts = np.cumsum([piece.n_vertices for piece in pieces])[:-1]
-    mesh, index = weld(pieces, np.split(same, cuts))
+    mesh, index = weld_coincident(pieces)  # the seams' copies of a vertex are one
     tile_of = np.repeat(positions, [piece.n_vertices for piece in pieces])
     seams = _seams(np.column_stack([index, tile_of]))
     if (mesh.n_vertices, mesh.n_faces, seams) != stated:
@@ -194,6 +191,14 @@ def weld(pieces: list, keys: list) -> tuple[Mesh, np.ndarray]:
     rank[order] = np.arange(order.size)
     index = rank[inverse]
     return Mesh(vertices=vertices[first[order]], faces=index[faces]), index
+
+
+def weld_coincident(pieces: list) -> tuple[Mesh, np.ndarray]:
+    """`weld` of the meshes `pieces`, their vertices of the same coordinates merged."""
+    vertices = np.concatenate([piece.vertices for piece in pieces])
+    same = np.unique(vertices, axis=0, return_inverse=True)[1].reshape(-1)
+    cuts = np.cumsum([piece.n_vertices for piece in pieces])[:-1]
+    return weld(pieces, np.split(same, cuts))
 
 
 def _owned_box(tile, offset, cube_size: float) -> list:
