@@ -613,21 +613,20 @@ class LiveReconstruction:
         gap = _box_distance(self._sensor, np.asarray(index) * size, size)
         return self._final or gap > self._reach()
 
+    def _state(self, index, state: str) -> bool:
+        """Whether block `index` is "sealed", "contoured" or "finished"; one that holds no
+        point is, once no later scan can reach it."""
+        block = self._blocks.get(index)
+        return getattr(block, state) if block is not None else self._out_of_reach(index)
+
     def _all_sealed(self, index, reach: int) -> bool:
-        """Whether every block the box of `index` reads is sealed, those that hold no point
-        yet too."""
-        return all(
-            self._blocks[n].sealed if n in self._blocks else self._out_of_reach(n)
-            for n in self._neighbours(index, reach)
-        )
+        """Whether every block the box of `index` reads is sealed."""
+        return all(self._state(n, "sealed") for n in self._neighbours(index, reach))
 
     def _all_contoured(self, index) -> bool:
         """Whether `index` and its 26 neighbours are contoured, or hold no point and never
         will."""
-        return all(
-            self._blocks[n].contoured if n in self._blocks else self._out_of_reach(n)
-            for n in self._neighbours(index)
-        )
+        return all(self._state(n, "contoured") for n in self._neighbours(index))
 
     def _read(self, index, box: np.ndarray, sealed: bool):
         """The points inside `box` (6,), input coordinates, of the blocks around `index`,
@@ -638,9 +637,9 @@ class LiveReconstruction:
         hi = np.floor((box[3:] - self._origin) / size).astype(np.int64)
         parts = []
         for n in product(*(range(a, b + 1) for a, b in zip(lo, hi, strict=True))):
+            if sealed and not self._state(n, "sealed"):
+                raise _NotYet
             if n in self._blocks:
-                if sealed and not self._blocks[n].sealed:
-                    raise _NotYet
                 if self._blocks[n].points is None:
                     raise ReconstructionError(
                         f"block {index}: its neighbourhoods reach beyond the blocks next to "
@@ -873,11 +872,10 @@ class LiveReconstruction:
         """Forget the points no block still to contour reads, the pieces no block still to
         finish welds, and the boundaries no block still to finish matches."""
         for index, block in self._blocks.items():
-            near = [self._blocks[n] for n in self._neighbours(index, reach) if n in self._blocks]
-            if block.points is not None and all(b.contoured for b in near):
+            near = self._neighbours(index, reach)
+            if block.points is not None and all(self._state(n, "contoured") for n in near):
                 block.points = block.viewpoints = None
-            close = [self._blocks[n] for n in self._neighbours(index) if n in self._blocks]
-            if all(b.finished for b in close):
+            if all(self._state(n, "finished") for n in self._neighbours(index)):
                 block.piece = block.surface = None
                 block.boundary = None
 
