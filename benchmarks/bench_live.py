@@ -36,8 +36,9 @@ from bench_phase1 import DEFAULT_OUTPUT, machine_info, reproduce_lines
 from zeroset import reconstruct
 from zeroset._progress import peak_mib
 from zeroset.evaluate import compare_to_reference
+from zeroset.inspect import LiveInspection, inspect_pipe
 from zeroset.live import LiveReconstruction
-from zeroset.synthetic import PipePath, scan_pipe_run
+from zeroset.synthetic import Defect, PipePath, scan_pipe_run
 from zeroset.topology import boundary_loops, face_components
 from zeroset.types import Mesh
 
@@ -47,6 +48,13 @@ ROTATION_STEP = 2.3  # degrees: about 100,000 points a station
 LENGTHS = (20.0, 40.0)
 BEND_RADIUS = 1.2
 PREVIEW = 1.0  # metres around the sensor whose open blocks a previewing run re-meshes
+#: Dents on a leg, in the first bend, on the second leg and in the second bend.
+DENTS = (
+    Defect("dent", 3.0, 90.0, 0.010, 0.10),
+    Defect("dent", 6.6, 270.0, 0.008, 0.10),
+    Defect("dent", 10.0, 45.0, 0.006, 0.08),
+    Defect("dent", 14.2, 180.0, 0.012, 0.10),
+)
 
 
 def path_of(length: float) -> PipePath:
@@ -66,8 +74,9 @@ def stations(length: float) -> np.ndarray:
 def scan(path: PipePath, station: float, k: int):
     """The scan of station `station` (its own seed `k`)."""
     return scan_pipe_run(
-        path, radius=RADIUS, stations=[station], rotation_step=ROTATION_STEP, rng=k
-    )
+        path, radius=RADIUS, stations=[station], rotation_step=ROTATION_STEP, defects=DENTS,
+        rng=k,
+    )  # fmt: skip
 
 
 def warm_up() -> None:
@@ -83,14 +92,16 @@ def warm_up() -> None:
 
 
 def replay(length: float, out: Path, like: Path | None = None, preview: float = 0.0) -> None:
-    """The live run of `length` metres; its figures to `out` (JSON), its mesh beside it.
-    With `like`, the batch run's parameters, tolerance and lattice origin (a pickle); with
-    `preview`, the open blocks within it of the sensor previewed at every scan."""
+    """The live run of `length` metres, inspected as it goes; its figures to `out` (JSON),
+    its mesh beside it. With `like`, the batch run's parameters, tolerance and lattice
+    origin (a pickle), not inspected; with `preview`, the open blocks within it of the
+    sensor previewed at every scan."""
     warm_up()
     path = path_of(length)
-    seconds, points, finished, waiting = [], 0, [], []
+    seconds, points, finished, waiting, reported = [], 0, [], [], []
     given = {} if like is None else pickle.loads(like.read_bytes())
-    live = LiveReconstruction(preview=preview, **given)
+    inspection = LiveInspection() if like is None and not preview else None
+    live = LiveReconstruction(preview=preview, inspection=inspection, **given)
     made = 0.0
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
@@ -102,6 +113,8 @@ def replay(length: float, out: Path, like: Path | None = None, preview: float = 
             seconds.append(update.seconds)
             finished.append(len(update.finished))
             waiting.append(update.waiting)
+            for stretch in update.inspected:  # where the robot was when it was reported
+                reported.append([stretch.axial_end, float(s), [d.axial for d in stretch.defects]])
             points += part.points.shape[0]
             del part
         closing = live.close()
@@ -113,11 +126,22 @@ def replay(length: float, out: Path, like: Path | None = None, preview: float = 
         "stats": live.summary(), "timings": {k: v for k, v in live.timings.items() if k != "scans"},
         "warnings": sorted({str(w.message) for w in caught}), "generated": made,
         "parameters": [live.parameters.rho_delta, live.parameters.cube_size],
+        "inspection": None if inspection is None else {
+            "summary": inspection.summary(), "reported": reported,
+            "defects": [[d.axial, d.clock, d.depth] for d in inspection.defects()],
+        },
     }, default=float))  # fmt: skip
 
 
-def batch(length: float, out: Path) -> None:
-    """The batch run of the same scans; its figures to `out`, its mesh beside it."""
+def _defects(mesh: Mesh, points, viewpoints) -> list:
+    """[axial, clock, depth] of each defect `inspect_pipe` finds, by axial position."""
+    found = inspect_pipe(mesh, points, viewpoints=viewpoints).defects.defects
+    return sorted([d.axial, d.clock, d.depth] for d in found)
+
+
+def batch(length: float, out: Path, live_mesh: Path | None = None) -> None:
+    """The batch run of the same scans; its figures to `out`, its mesh beside it; the
+    defects the final inspection finds on it and on `live_mesh`, with the points."""
     path = path_of(length)
     parts = [scan(path, s, k) for k, s in enumerate(stations(length))]
     points = np.concatenate([p.points for p in parts])
@@ -127,15 +151,20 @@ def batch(length: float, out: Path) -> None:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         result = reconstruct(points, viewpoints=viewpoints)
-    wall = time.perf_counter() - start
+    wall, peak = time.perf_counter() - start, peak_mib()
     mesh = result.mesh
     np.savez(out.with_suffix(".npz"), vertices=mesh.vertices, faces=mesh.faces)
     model = result.stats["noise_model"]
     held = replace(result.parameters, noise_model=(model["intercept"], model["slope"]))
     like = {"parameters": held, "origin": result.offset, "tolerance": result.stats["tolerance"]}
     out.with_suffix(".pickle").write_bytes(pickle.dumps(like))
+    start = time.perf_counter()
+    found = _defects(mesh, points, viewpoints)
+    inspected = time.perf_counter() - start
+    live_found = None if live_mesh is None else _defects(_mesh(live_mesh), points, viewpoints)
     out.write_text(json.dumps({
-        "seconds": wall, "points": int(points.shape[0]), "peak_mib": peak_mib(),
+        "defects": found, "live_defects": live_found, "inspect_seconds": inspected,
+        "seconds": wall, "points": int(points.shape[0]), "peak_mib": peak,
         "parameters": [result.parameters.rho_delta, result.parameters.cube_size],
         "stats": {k: v for k, v in result.stats.items() if isinstance(v, int | float)},
     }))  # fmt: skip
@@ -172,7 +201,9 @@ def report(runs, batch_run, alike, previewed, truth: Mesh, machine: dict, comman
         f"{ROTATION_STEP} degrees), each scan given to `LiveReconstruction.add` with its "
         "sensor positions as soon as it is made (defaults: parameters measured from the "
         "first scans, reach the longest range seen, a budget of 1 s of block work a scan, "
-        "no previews). Seconds per scan are those of `add`, making the scan left out; "
+        "no previews), and inspected as its blocks finish (`zeroset.inspect.LiveInspection`, "
+        "defaults). The last row is the 20 m run given the batch run's parameters, without "
+        "the inspection. Seconds per scan are those of `add`, making the scan left out; "
         "waiting: blocks sealed but not yet finished after the scan; peak memory is the "
         "process's resident peak.",
         "",
@@ -180,10 +211,11 @@ def report(runs, batch_run, alike, previewed, truth: Mesh, machine: dict, comman
         "close s | blocks | triangles | peak MiB |",
         "|---|---|---|---|---|---|---|---|---|---|---|",
     ]
-    for length, run in runs.items():
+    named = [(f"{length:g} m", run) for length, run in runs.items()]
+    for name, run in [*named, (f"{LENGTHS[0]:g} m, not inspected", alike)]:
         s = np.asarray(run["seconds"])
         lines.append(
-            f"| {length:g} m | {run['scans']} | {run['points']:,} | {np.median(s):.2f} | "
+            f"| {name} | {run['scans']} | {run['points']:,} | {np.median(s):.2f} | "
             f"{np.quantile(s, 0.95):.2f} | {s.max():.2f} | {max(run['waiting'])} | "
             f"{run['close']:.1f} | {run['stats']['blocks_finished']} | "
             f"{run['stats']['faces']:,} | {run['peak_mib']:,.0f} |"
@@ -244,11 +276,68 @@ def report(runs, batch_run, alike, previewed, truth: Mesh, machine: dict, comman
         + ".",
         "",
     ]
+    lines += inspection_lines(first, batch_run)
     if first["warnings"]:
         lines += ["Warnings of the live run:", ""]
         lines += [f"- {w}" for w in first["warnings"]] + [""]
     lines += reproduce_lines(command, machine)[6:]
     return "\n".join(lines)
+
+
+def inspection_lines(run: dict, batch_run: dict) -> list[str]:
+    """The live inspection against the truth and the final inspections, as markdown."""
+    grown = run["inspection"]
+    summary, reported = grown["summary"], grown["reported"]
+    windows = np.array([w["seconds"] for w in summary["stretches"]])
+    lines = [
+        f"The live inspection reported {len(summary['stretches'])} stretches, to "
+        f"{summary['inspected_to']:.2f} m of the {run['length']:g} m run (windows "
+        f"{np.median(windows):.1f} s median, {windows.max():.1f} s largest; the "
+        f"{LENGTHS[0]:g} m run's inspection time, {run['timings'].get('inspect', 0):.0f} s, is "
+        "in its seconds per scan above). It held a nominal diameter of "
+        f"{1e3 * summary['nominal_diameter']:.1f} mm and a threshold of "
+        f"{1e3 * summary['threshold']:.2f} mm from its first window. Each dent, as the live "
+        "inspection reported it (and where the robot's sensor was then, along the run), and "
+        "as the final inspection of each mesh with every point found it (axial m, clock "
+        "degrees, depth mm):",
+        "",
+        "| dent | truth | live inspection | reported with the sensor at | final, live mesh | "
+        "final, batch mesh |",
+        "|---|---|---|---|---|---|",
+    ]
+
+    def nearest(found, dent):
+        near = [f for f in found or [] if abs(f[0] - dent.axial) < 0.1]
+        return min(near, key=lambda f: abs(f[0] - dent.axial)) if near else None
+
+    def cell(found):
+        return "not found" if found is None else (
+            f"{found[0]:.3f}, {found[1]:.0f}, {-1e3 * found[2]:.2f}"
+        )  # fmt: skip
+
+    for k, dent in enumerate(DENTS, start=1):
+        live = nearest(grown["defects"], dent)
+        when = next((r[1] for r in reported if nearest([[a, 0, 0] for a in r[2]], dent)), None)
+        lines.append(
+            f"| {k} | {dent.axial:.3f}, {dent.clock:.0f}, {1e3 * dent.depth:.2f} | {cell(live)} | "
+            + ("at close" if when is None else f"{when:.2f} m")
+            + f" | {cell(nearest(batch_run['live_defects'], dent))} | "
+            f"{cell(nearest(batch_run['defects'], dent))} |"
+        )
+    others = [
+        (name, len(found) - sum(nearest(found, d) is not None for d in DENTS))
+        for name, found in (("live inspection", grown["defects"]),
+                            ("final, live mesh", batch_run["live_defects"]),
+                            ("final, batch mesh", batch_run["defects"]))
+    ]  # fmt: skip
+    lines += [
+        "",
+        "Defects found where there is none: "
+        + ", ".join(f"{name} {count}" for name, count in others)
+        + f". The final inspection of the batch mesh took {batch_run['inspect_seconds']:.0f} s.",
+        "",
+    ]
+    return lines
 
 
 def main() -> None:
@@ -258,22 +347,25 @@ def main() -> None:
     parser.add_argument("--json", type=Path, help=argparse.SUPPRESS)
     parser.add_argument("--like", type=Path, help=argparse.SUPPRESS)
     parser.add_argument("--preview", type=float, default=0.0, help=argparse.SUPPRESS)
+    parser.add_argument("--live-mesh", type=Path, help=argparse.SUPPRESS)
     parser.add_argument("--output", type=Path, default=DEFAULT_OUTPUT)
     args = parser.parse_args()
     if args.replay is not None:
         return replay(args.replay, args.json, args.like, args.preview)
     if args.batch is not None:
-        return batch(args.batch, args.json)
+        return batch(args.batch, args.json, args.live_mesh)
     with tempfile.TemporaryDirectory() as folder:
         folder = Path(folder)
         runs = {length: _child("replay", length, folder) for length in LENGTHS}
-        batch_run = _child("batch", LENGTHS[0], folder)
+        live_mesh = str(runs[LENGTHS[0]]["mesh"])
+        batch_run = _child("batch", LENGTHS[0], folder, "--live-mesh", live_mesh)
         like = batch_run["mesh"].with_suffix(".pickle")
         alike = _child("replay", LENGTHS[0], folder, "--like", str(like))
         previewed = _child("replay", LENGTHS[0], folder, "--preview", str(PREVIEW))
         truth = scan_pipe_run(
-            path_of(LENGTHS[0]), radius=RADIUS, stations=[1.0], rotation_step=30.0, rng=0
-        ).truth
+            path_of(LENGTHS[0]), radius=RADIUS, stations=[1.0], rotation_step=30.0,
+            defects=DENTS, rng=0,
+        ).truth  # fmt: skip
         text = report(
             runs, batch_run, alike, previewed, truth, machine_info(),
             "python benchmarks/bench_live.py",

@@ -38,11 +38,11 @@ LENGTH = 4.0
 BLOCK_CUBES = 16
 
 
-def _scans(rotation_step=8.0, defects=()):
+def _scans(rotation_step=8.0, defects=(), length=LENGTH):
     """Scans of a straight open pipe along x, a station every 0.5 m, each within RANGE."""
-    path = PipePath.build([("straight", LENGTH)])
+    path = PipePath.build([("straight", length)])
     scans = []
-    for k, station in enumerate(np.arange(0.25, LENGTH, 0.5)):
+    for k, station in enumerate(np.arange(0.25, length, 0.5)):
         scan = scan_pipe_run(
             path,
             radius=RADIUS,
@@ -358,3 +358,7 @@ def test_the_final_inspection_finds_the_dent_the_batch_run_finds(tmp_path):
         assert abs(r["clock_deg"][0] - dent.clock) < 5.0
         assert abs(-r["depth_mm"][0] - 1e3 * dent.depth) < 1.0
     assert abs(rows[0]["depth_mm"][0] - rows[1]["depth_mm"][0]) < 0.5
+    grown = np.genfromtxt(live / "live-defects.csv", delimiter=",", names=True, dtype=None,
+                          encoding="utf-8", ndmin=1)  # fmt: skip
+    assert grown.size == 1 and abs(grown["axial_m"][0] - dent.axial) < 0.03  # as it grew
+    assert abs(grown["depth_mm"][0] - rows[1]["depth_mm"][0]) < 0.5

@@ -508,9 +508,10 @@ def _live_command(commands, parents) -> None:
         "blocks the newest scan reached within this distance of its sensor (default: 0, none)",
     )  # fmt: skip
     parser.add_argument(
-        "--inspect", type=Path, metavar="DIR", help="once the scans are done, inspect the "
-        "welded mesh as a pipe with every scan's points, read again (see 'zeroset inspect'), "
-        "and write the results to DIR",
+        "--inspect", type=Path, metavar="DIR", help="inspect the pipe as its blocks finish "
+        "(live-inspection.json, live-defects.csv, live-joints.csv, live-ovality.csv, rewritten "
+        "as each stretch is reported); once the scans are done, inspect the welded mesh with "
+        "every scan's points, read again (see 'zeroset inspect'); write both to DIR",
     )  # fmt: skip
     _add_inspection_options(parser)
     _add_config_options(parser)
@@ -545,8 +546,21 @@ def _run_live(args: argparse.Namespace) -> int:
         from .inspect._pictures import picture_modules
 
         picture_modules()  # a missing extra stops the run here, not after it
-        _check_outputs(_inspection_files(args.inspect), args.input, force=args.force)
+        from .inspect import LIVE_FILES
+
+        _check_outputs(_inspection_files(args.inspect, LIVE_FILES), args.input, force=args.force)
     config = ReconstructionConfig().with_overrides(**_config_overrides(args))
+    growing = None
+    if args.inspect is not None:
+        from .inspect import UP, LiveInspection
+
+        growing = LiveInspection(
+            nominal_diameter=args.nominal_diameter,
+            threshold=None if args.threshold_mm is None else args.threshold_mm / 1000.0,
+            up=UP if args.up is None else args.up,
+            folder=args.inspect,
+            rng=config.seed,
+        )
     live = LiveReconstruction(
         config,
         block_cubes=BLOCK_CUBES if args.block_cubes is None else args.block_cubes,
@@ -554,6 +568,7 @@ def _run_live(args: argparse.Namespace) -> int:
         max_jump=args.max_jump,
         folder=folder,
         preview=args.preview,
+        inspection=growing,
     )
     seconds, names, files = [], [], []
     bar = tqdm(
@@ -565,7 +580,8 @@ def _run_live(args: argparse.Namespace) -> int:
         seconds.append(update.seconds)
         names.append(name)
         bar.update()
-        bar.set_postfix_str(f"{live.summary()['blocks_finished']} blocks finished")
+        done = "" if growing is None else f", inspected to {growing.inspected_to:.2f} m"
+        bar.set_postfix_str(f"{live.summary()['blocks_finished']} blocks finished{done}")
     live.close()
     bar.close()
     stats = live.summary()
@@ -603,6 +619,12 @@ def _run_live(args: argparse.Namespace) -> int:
             f"mesh        {stats['blocks_finished']} blocks, {stats['vertices']:,} vertices, "
             f"{stats['faces']:,} triangles, written to {folder} ({MANIFEST}, live.json)"
         )
+        if growing is not None:
+            print(
+                f"inspected   {len(growing.stretches)} stretches as they finished, to "
+                f"{growing.inspected_to:.2f} m: {len(growing.defects())} defects "
+                f"(live-*.csv and live-inspection.json in {args.inspect})"
+            )
     return 0
 
 
@@ -1025,9 +1047,10 @@ INSPECTION_FILES = (
 )
 
 
-def _inspection_files(folder: Path | None) -> list[Path]:
-    """The files an inspection writes to `folder`, to check before any work: none without
-    a folder, or when the folder is still to be made (in a folder that exists)."""
+def _inspection_files(folder: Path | None, more=()) -> list[Path]:
+    """The files an inspection writes to `folder` (and the files named `more`), to check
+    before any work: none without a folder, or when the folder is still to be made (in a
+    folder that exists)."""
     from .errors import InputError
 
     if folder is None:
@@ -1038,7 +1061,7 @@ def _inspection_files(folder: Path | None) -> list[Path]:
         if not folder.absolute().parent.is_dir():
             raise InputError(f"{folder}: cannot be made; folder {folder.parent} does not exist")
         return []
-    return [folder / name for name in INSPECTION_FILES]
+    return [folder / name for name in (*INSPECTION_FILES, *more)]
 
 
 def _inspect(args: argparse.Namespace, mesh, points, viewpoints=None) -> tuple:

@@ -124,6 +124,8 @@ class ScanUpdate:
         Wall-clock seconds the call took.
     waiting : int
         Blocks sealed but not yet finished after it (`LiveReconstruction.budget`).
+    inspected : tuple of zeroset.inspect.Stretch
+        The stretches of the pipe its live inspection reported.
     """
 
     scan: int
@@ -134,6 +136,7 @@ class ScanUpdate:
     previewed: dict
     seconds: float
     waiting: int = 0
+    inspected: tuple = ()
 
 
 @dataclass(eq=False)
@@ -192,10 +195,13 @@ class LiveReconstruction:
         Preview the unsealed blocks that the newest scan reached within this distance of
         its sensor (data units); 0 previews none.
     budget : float
-        Seconds of block work (contouring and finishing) one `add` does once it has taken
-        its scan: it stops at the first block done past them, and what is left waits for
-        the next scans (`close` does it all; `waiting` counts it). ``inf`` does all that
-        can be done at once.
+        Seconds of block work (contouring, finishing, inspecting) one `add` does once it
+        has taken its scan: it stops at the first block or window done past them, and what
+        is left waits for the next scans (`close` does it all; `waiting` counts the
+        blocks). ``inf`` does all that can be done at once.
+    inspection : zeroset.inspect.LiveInspection, optional
+        Inspect the pipe as its blocks finish: each finished block's mesh and points go
+        to it, and it is told how far along the sensors' path every block is finished.
     """
 
     def __init__(
@@ -210,6 +216,7 @@ class LiveReconstruction:
         folder=None,
         preview: float = 0.0,
         budget: float = BUDGET,
+        inspection=None,
         **overrides,
     ) -> None:
         config = (config or ReconstructionConfig()).with_overrides(**overrides)
@@ -232,6 +239,7 @@ class LiveReconstruction:
         self.folder = None if folder is None else check_folder(folder)
         self.preview = float(preview)
         self.budget = float(budget)
+        self.inspection = inspection
         self._origin = None if origin is None else as_points(np.reshape(origin, (1, 3)))[0]
         self._origin_given = origin is not None
         self._given_reach, self._max_jump = reach, max_jump
@@ -304,13 +312,15 @@ class LiveReconstruction:
         self._sensor = local_viewpoints.mean(axis=0)
         ranges = np.linalg.norm(local - local_viewpoints, axis=1)
         self._range = max(self._range, float(ranges.max()))
+        if self.inspection is not None:
+            self.inspection.scan(self._sensor + self._origin, ranges)
         late = 0
         if self.parameters is None:
             self._raw.append((points, viewpoints))
             self._measure_parameters()
         else:
             late = self._bin(local, local_viewpoints)
-        finished = self._advance(final=False, deadline=start + self.budget)
+        finished, inspected = self._advance(final=False, deadline=start + self.budget)
         previewed = self._previews(local) if self.preview > 0.0 else {}
         if late:
             self.stats["late_points"] += late
@@ -323,7 +333,9 @@ class LiveReconstruction:
         seconds = time.perf_counter() - start
         self.timings.setdefault("scans", []).append(seconds)
         used = points.shape[0] - late
-        return ScanUpdate(number, used, None, late, finished, previewed, seconds, self.waiting())
+        return ScanUpdate(
+            number, used, None, late, finished, previewed, seconds, self.waiting(), inspected
+        )
 
     def close(self) -> ScanUpdate:
         """Finish every block left (no more scans come) and return what that changed."""
@@ -332,7 +344,9 @@ class LiveReconstruction:
             self._closed = True
             if self.parameters is None and self._raw:
                 self._measure_parameters(final=True)
-            finished = self._advance(final=True)
+            finished, inspected = self._advance(final=True)
+            if self.inspection is not None:
+                self.inspection.close()
             stats = self.summary()
             warn_surface_changes(stats, self.config)
             self._warn_drift()
@@ -362,8 +376,9 @@ class LiveReconstruction:
                     stacklevel=2,
                 )
         else:
-            finished = {}
-        return ScanUpdate(-1, 0, None, 0, finished, {}, time.perf_counter() - start)
+            finished, inspected = {}, []
+        seconds = time.perf_counter() - start
+        return ScanUpdate(-1, 0, None, 0, finished, {}, seconds, 0, tuple(inspected))
 
     def mesh(self) -> Mesh:
         """The whole current mesh, input coordinates: the finished blocks welded (read back
@@ -541,12 +556,13 @@ class LiveReconstruction:
         box = np.r_[self._origin + cube * lo - halo, self._origin + cube * hi + halo]
         return Tile(index=tuple(index), owned=(lo, hi), box=box, halo=halo)
 
-    def _advance(self, final: bool, deadline: float = np.inf) -> dict:
+    def _advance(self, final: bool, deadline: float = np.inf) -> tuple[dict, list]:
         """Seal the blocks out of reach; contour and finish those that can be, oldest
-        sealed first, finishing before contouring, until `deadline` (`time.perf_counter`)
-        has passed after one of them; the finished meshes."""
+        sealed first, finishing before contouring, then inspect, until `deadline`
+        (`time.perf_counter`) has passed after one of them; the finished meshes and the
+        stretches inspected."""
         if self.parameters is None:
-            return {}
+            return {}, []
         self._final = final
         for index, block in self._blocks.items():
             block.stuck = False
@@ -568,8 +584,27 @@ class LiveReconstruction:
                     finished[index] = mesh.translated(self._origin)
             if time.perf_counter() > deadline:
                 break
+        inspected = []
+        if self.inspection is not None and time.perf_counter() <= deadline:
+            start = time.perf_counter()
+            inspected = self.inspection.advance(self._front(), deadline)
+            _time(self.timings, "inspect", start)
         self._drop(reach)
-        return finished
+        return finished, inspected
+
+    def _front(self) -> float:
+        """How far along the sensors' path every block is finished (``inf`` when all
+        are): the path's position nearest the first block not finished, or the first
+        sensor from which the newest one's reach (a block past it) still reaches."""
+        pending = [i for i, b in self._blocks.items() if not b.finished]
+        if self._final and not pending:
+            return np.inf
+        size = self._block_size()
+        centres = (np.asarray(pending, dtype=np.float64).reshape(-1, 3) + 0.5) * size
+        nodes = self.inspection.path - self._origin
+        near = np.linalg.norm(nodes - self._sensor, axis=1) <= self._reach() + np.sqrt(3) * size
+        return float(min(self.inspection.position(np.r_[centres, nodes[near]] + self._origin),
+                         default=np.inf))
 
     def _next_step(self, reach: int):
         """("finish" or "contour", block index) of the oldest sealed block that can be
@@ -731,6 +766,19 @@ class LiveReconstruction:
         return meshes
 
     def _finish(self, index) -> Mesh | None:
+        """Finish block `index` (`_final_mesh`) and hand it and its points to the
+        inspection; its final mesh (local frame), None where it has no face."""
+        mesh = self._final_mesh(index)
+        if self.inspection is not None:
+            block = self._blocks[index]
+            local, views = block.cloud()
+            centre = self._origin + (np.asarray(index) + 0.5) * self._block_size()
+            placed = None if mesh is None else mesh.translated(self._origin)
+            self.inspection.block(index, placed, local + self._origin, views + self._origin,
+                                  centre)  # fmt: skip
+        return mesh
+
+    def _final_mesh(self, index) -> Mesh | None:
         """Repair, rim, refine and simplify block `index` among its neighbours; record,
         write and return its final mesh (local frame), None where it has no face."""
         start = time.perf_counter()
@@ -873,7 +921,10 @@ class LiveReconstruction:
         finish welds, and the boundaries no block still to finish matches."""
         for index, block in self._blocks.items():
             near = self._neighbours(index, reach)
-            if block.points is not None and all(self._state(n, "contoured") for n in near):
+            held = self.inspection is not None and not block.finished  # for the inspection
+            if block.points is not None and not held and all(
+                self._state(n, "contoured") for n in near
+            ):
                 block.points = block.viewpoints = None
             if all(self._state(n, "finished") for n in self._neighbours(index)):
                 block.piece = block.surface = None

@@ -13,6 +13,8 @@
   smoothed, and its connected regions beyond the points' own noise.
 - `find_joints`: ring features (gaps, offsets, beads); `check_stations`: the stretches
   whose sections the fit does not explain, never judged for defects.
+- `LiveInspection`: the inspection grown while `zeroset.live.LiveReconstruction` finishes
+  blocks, in windows stitched along the robot's path.
 - `inspection_summary`, `inspection_lines`, `write_defects_csv`, `write_joints_csv`,
   `write_ovality_csv`: the numbers as JSON, printed lines and tables; `deviation_map`,
   `ovality_plot` and `mesh_picture`: the pictures, as PNG bytes.
@@ -39,20 +41,24 @@ from ._files import (
 from ._frame import UP
 from ._inspection import Inspection, inspect_pipe
 from ._joints import JOINT_KINDS, Joint, find_joints
+from ._live import LIVE_FILES, LiveInspection, Stretch
 from ._measure import Ovality, deviation, ovality
 from ._pictures import clock_label, deviation_map, mesh_picture, ovality_plot
 from ._unrolled import WallMap, unroll
 
 __all__ = [
     "JOINT_KINDS",
+    "LIVE_FILES",
     "UP",
     "Branch",
     "Defect",
     "Defects",
     "Inspection",
     "Joint",
+    "LiveInspection",
     "Ovality",
     "Pipe",
+    "Stretch",
     "Unreliable",
     "WallMap",
     "beam_steps",

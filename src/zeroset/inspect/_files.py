@@ -23,11 +23,15 @@ __all__ = [
     "JOINT_COLUMNS",
     "OVALITY_COLUMNS",
     "defect_rows",
+    "defect_table",
     "inspection_lines",
     "inspection_summary",
     "joint_rows",
+    "joint_table",
     "length_agrees",
+    "ovality_table",
     "station_summary",
+    "write_csv",
     "write_defects_csv",
     "write_joints_csv",
     "write_ovality_csv",
@@ -88,6 +92,11 @@ def _finite(value: float) -> float | None:
 def defect_rows(inspection: Inspection) -> list[dict]:
     """One dict per defect, deepest first, with the `DEFECT_COLUMNS` (mm, %, cm^2, m, deg);
     ``assess`` is ``"yes"`` or empty, a depth percent not measured None."""
+    return defect_table(inspection.defects.defects)
+
+
+def defect_table(defects) -> list[dict]:
+    """`defect_rows` of a sequence of `Defect`, numbered from 1 in its order."""
     return [
         {
             "number": number,
@@ -106,13 +115,18 @@ def defect_rows(inspection: Inspection) -> list[dict]:
             "width_mm": round(1000.0 * d.width, 1),
             "area_cm2": round(1e4 * d.area, 2),
         }
-        for number, d in enumerate(inspection.defects.defects, start=1)
+        for number, d in enumerate(defects, start=1)
     ]
 
 
 def joint_rows(inspection: Inspection) -> list[dict]:
     """One dict per joint, by axial position, with the `JOINT_COLUMNS` (m, mm, deg): the
     clock (degrees and ``"h:mm"``) of an offset and the depth of a gap, None otherwise."""
+    return joint_table(inspection.joints)
+
+
+def joint_table(joints) -> list[dict]:
+    """`joint_rows` of a sequence of `Joint`, numbered from 1 in its order."""
     return [
         {
             "number": number,
@@ -124,7 +138,7 @@ def joint_rows(inspection: Inspection) -> list[dict]:
             "clock": clock_label(j.clock) if math.isfinite(j.clock) else None,
             "depth_mm": _finite(round(1000.0 * j.depth, 2)),
         }
-        for number, j in enumerate(inspection.joints, start=1)
+        for number, j in enumerate(joints, start=1)
     ]
 
 
@@ -223,12 +237,12 @@ def _fields(record) -> dict:
 
 def write_defects_csv(path: str | os.PathLike, inspection: Inspection) -> Path:
     """Write the defects table (`DEFECT_COLUMNS`, deepest first) as CSV, atomically."""
-    return _write_csv(path, DEFECT_COLUMNS, defect_rows(inspection))
+    return write_csv(path, DEFECT_COLUMNS, defect_rows(inspection))
 
 
 def write_joints_csv(path: str | os.PathLike, inspection: Inspection) -> Path:
     """Write the joints table (`JOINT_COLUMNS`, by axial position) as CSV, atomically."""
-    return _write_csv(path, JOINT_COLUMNS, joint_rows(inspection))
+    return write_csv(path, JOINT_COLUMNS, joint_rows(inspection))
 
 
 def write_ovality_csv(path: str | os.PathLike, inspection: Inspection) -> Path:
@@ -239,8 +253,14 @@ def write_ovality_csv(path: str | os.PathLike, inspection: Inspection) -> Path:
     `Pipe.unreliable` stretches it lies in (empty in none). Stations whose data do not go
     round the pipe are left out.
     """
-    found, stretches = inspection.ovality, inspection.pipe.unreliable
-    rows = [
+    rows = ovality_table(inspection.ovality, inspection.pipe.unreliable)
+    return write_csv(path, OVALITY_COLUMNS, rows)
+
+
+def ovality_table(found: Ovality, stretches) -> list[dict]:
+    """The rows of `write_ovality_csv` for the stations of `found` and the `Unreliable`
+    `stretches`."""
+    return [
         {
             "axial_m": round(float(a), 4),
             "ovality_percent": round(100.0 * float(o), 4),
@@ -263,7 +283,6 @@ def write_ovality_csv(path: str | os.PathLike, inspection: Inspection) -> Path:
         )
         if math.isfinite(o)
     ]
-    return _write_csv(path, OVALITY_COLUMNS, rows)
 
 
 def inspection_lines(inspection: Inspection) -> list[str]:
@@ -366,7 +385,8 @@ def _joint_line(row: dict) -> str:
     return line
 
 
-def _write_csv(path, columns, rows) -> Path:
+def write_csv(path, columns, rows) -> Path:
+    """Write `rows` (dicts) under `columns` as CSV, atomically."""
     target = check_output(path)
     with atomic_target(target) as temporary:
         with open(temporary, "w", newline="", encoding="utf-8") as handle:

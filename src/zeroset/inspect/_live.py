@@ -1,0 +1,459 @@
+"""A pipe inspected while it is reconstructed: windows of finished blocks, stitched along the
+robot's path.
+
+`zeroset.live.LiveReconstruction` hands each finished block (its final mesh, its points and
+their sensors) to a `LiveInspection`, and tells it how far along the path every block is
+finished (the *front*). Each time the front has moved ``step`` past what was reported, the
+blocks from `MARGIN` radii before the report's end to the front are inspected as one pipe
+(`inspect_pipe`), and what lies between the report's end and `TAIL` radii short of the
+front is reported: its stations, defects, joints, branches and unreliable stretches. The
+window's own ends are ends of the data to the inspection (a one-sided smoothing kernel, the
+centreline's end), so each is reported by the window where it lies inside.
+
+Axial positions run along the whole run: the first window's are the run's (0 where the data
+start, as in `inspect_pipe`); each later window's are shifted so that its report begins where
+the last one ended. 12 o'clock is carried from one window to the next: a window's ``up`` is
+the last window's 12 o'clock at its start. The nominal diameter and the threshold are held:
+given, or the first window's, as the reconstruction holds its parameters; what each later
+window would have chosen is kept, and `LiveInspection.drift` says where it differs.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+import warnings
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+from .. import io
+from .._validate import as_points
+from ..errors import InputError, SurfaceWarning
+from ..tile_output import weld_coincident
+from ..types import Mesh
+from ._centreline import Unreliable
+from ._defects import Branch, Defect, smallest_depth
+from ._files import (
+    DEFECT_COLUMNS,
+    JOINT_COLUMNS,
+    OVALITY_COLUMNS,
+    defect_table,
+    joint_table,
+    ovality_table,
+    station_summary,
+    write_csv,
+)
+from ._frame import UP
+from ._inspection import inspect_pipe
+from ._joints import Joint
+from ._measure import Ovality
+
+__all__ = ["LIVE_FILES", "STEP", "LiveInspection", "Stretch"]
+
+#: Radii the finished front must move past the last report before the next window: each
+#: window inspects ``MARGIN + STEP + TAIL`` radii to report `STEP`, 1.6 times the run's length
+#: over the run.
+STEP = 10.0
+#: Radii before a report's start that its window inspects again: two diameters, past the
+#: end effects of the data's ends (the centreline's margin of one radius and its knots of
+#: half a radius, the defects' two kernels of 0.04 radii, the thin stretch where the data
+#: start).
+MARGIN = 4.0
+#: Radii short of the front that a window leaves to the next one: the front is an end of
+#: the data to it.
+TAIL = 2.0
+#: Relative change of the diameter or the threshold at which a later window would have
+#: chosen differently from the held ones (as the reconstruction's parameters).
+DRIFT = 0.25
+#: The files `LiveInspection.write` writes, rewritten as each window is reported.
+LIVE_FILES = ("live-inspection.json", "live-defects.csv", "live-joints.csv", "live-ovality.csv")
+
+
+@dataclass(frozen=True, eq=False)
+class Stretch:
+    """What one window reported: the stretch from `axial_start` to `axial_end` of the run
+    (metres along the centreline), with its findings in the run's axial positions.
+
+    Attributes
+    ----------
+    axial_start, axial_end : float
+        The stretch reported, metres.
+    ovality : Ovality
+        Its stations.
+    defects : tuple of Defect
+        By axial position.
+    joints : tuple of Joint
+    branches : tuple of Branch
+    unreliable : tuple of Unreliable
+        Its unreliable stretches, cut to it; a window not inspected is one, with the reason.
+    measured_diameter : float
+        The window's median station diameter, metres (NaN where not inspected).
+    would_threshold : float
+        The threshold the window would have chosen from its own noise, metres.
+    seconds : float
+        The window's inspection time.
+    """
+
+    axial_start: float
+    axial_end: float
+    ovality: Ovality
+    defects: tuple[Defect, ...]
+    joints: tuple[Joint, ...]
+    branches: tuple[Branch, ...]
+    unreliable: tuple[Unreliable, ...]
+    measured_diameter: float
+    would_threshold: float
+    seconds: float
+
+
+class LiveInspection:
+    """A pipe's inspection grown as its blocks finish (module docstring).
+
+    Parameters
+    ----------
+    nominal_diameter : float, optional
+        Metres; default the first window's measured diameter, held.
+    threshold : float, optional
+        Smallest depth reported as a defect, metres; default the first window's, held.
+    up : (3,) array_like
+        The world's up, which sets 12 o'clock at the run's start (see `zeroset.inspect`).
+    step : float, optional
+        Metres the finished front moves between windows; default `STEP` radii (the radius
+        guessed from the first scan's nearest ranges until the first window measures it).
+    folder : str or os.PathLike, optional
+        Rewrite `LIVE_FILES` there, atomically, as each window is reported.
+    rng : int
+        Seed of each window's `inspect_pipe`.
+    """
+
+    def __init__(
+        self,
+        *,
+        nominal_diameter: float | None = None,
+        threshold: float | None = None,
+        up=UP,
+        step: float | None = None,
+        folder=None,
+        rng: int = 0,
+    ) -> None:
+        for name, value in (("nominal_diameter", nominal_diameter), ("threshold", threshold),
+                            ("step", step)):  # fmt: skip
+            if value is not None and not 0.0 < value < math.inf:
+                raise InputError(f"{name} must be a positive length; got {value!r}")
+        self.nominal_diameter = nominal_diameter
+        self.threshold = threshold
+        self.step = step
+        self.folder = None if folder is None else Path(folder)
+        self.rng = rng
+        self.stretches: list[Stretch] = []
+        self._up = as_points(np.reshape(up, (1, 3)), "up")[0]
+        self._nodes: list = []  # the sensor path, input coordinates
+        self._radius: float | None = None  # guessed, then the held nominal radius
+        self._blocks: dict = {}  # block -> (path position, mesh, points, viewpoints)
+        self._done = -math.inf  # path position the reports reach
+        self._axial_done = 0.0  # ... and its axial position along the run
+        if self.folder is not None:
+            self.folder.mkdir(parents=True, exist_ok=True)
+
+    # --------------------------------------------------------------- fed by the reconstruction
+
+    def scan(self, sensor, ranges: np.ndarray) -> None:
+        """Take a scan's sensor position (3,) and its points' ranges (N,): the path, and the
+        radius guessed from the first scan (its nearest 5 % of ranges)."""
+        self._nodes.append(np.asarray(sensor, dtype=np.float64))
+        if self._radius is None and ranges.size:
+            self._radius = float(np.percentile(ranges, 5.0))
+
+    def block(self, index, mesh: Mesh | None, points: np.ndarray, viewpoints: np.ndarray,
+              centre: np.ndarray) -> None:  # fmt: skip
+        """Take a finished block: its final mesh (None where it has none), its points (N, 3)
+        and their sensors (N, 3), and its centre (3,), all input coordinates."""
+        position = float(self.position(centre[None])[0])
+        self._blocks[tuple(index)] = (position, mesh, points, viewpoints)
+
+    @property
+    def path(self) -> np.ndarray:
+        """(S, 3) the sensor's positions, scan by scan, input coordinates."""
+        return np.asarray(self._nodes, dtype=np.float64).reshape(-1, 3)
+
+    def position(self, x: np.ndarray) -> np.ndarray:
+        """(M,) path position (metres along the sensors' path) of the nearest path point to
+        each of `x` (M, 3)."""
+        nodes = self.path
+        if nodes.shape[0] < 2:
+            return np.zeros(x.shape[0])
+        a, b = nodes[:-1], nodes[1:]
+        length = np.linalg.norm(b - a, axis=1)
+        arc = np.r_[0.0, np.cumsum(length)]
+        t = np.einsum("msk,sk->ms", x[:, None] - a[None], b - a) / np.maximum(length**2, 1e-300)
+        t = np.clip(t, 0.0, 1.0)
+        foot = a[None] + t[..., None] * (b - a)[None]
+        nearest = np.argmin(np.linalg.norm(x[:, None] - foot, axis=2), axis=1)
+        rows = np.arange(x.shape[0])
+        return arc[nearest] + t[rows, nearest] * length[nearest]
+
+    def advance(self, front: float, deadline: float = math.inf) -> list[Stretch]:
+        """Inspect the windows the finished `front` (path position; ``inf`` once every block
+        is finished) allows, until `deadline` (`time.perf_counter`) has passed after one;
+        the stretches reported."""
+        reported = []
+        while self._blocks:
+            final = math.isinf(front)
+            if not final and front - TAIL * self._unit() - max(self._done, 0.0) < self._step():
+                break
+            stretch = self._window(front)
+            if stretch is None:
+                break
+            reported.append(stretch)
+            if final or time.perf_counter() > deadline:
+                break
+        if reported and self.folder is not None:
+            self.write(self.folder)
+        return reported
+
+    # ------------------------------------------------------------------------ the results
+
+    @property
+    def inspected_to(self) -> float:
+        """Axial position (m) up to which the run is reported."""
+        return self._axial_done
+
+    def ovality(self) -> Ovality:
+        """Every station reported so far, by axial position."""
+        parts = [s.ovality for s in self.stretches]
+        if not parts:
+            return _stations(None, np.zeros(0, dtype=bool), 0.0)
+        return Ovality(*(np.concatenate([getattr(p, n) for p in parts]) for n in _OVALITY))
+
+    def defects(self) -> tuple[Defect, ...]:
+        return tuple(d for s in self.stretches for d in s.defects)
+
+    def joints(self) -> tuple[Joint, ...]:
+        return tuple(j for s in self.stretches for j in s.joints)
+
+    def unreliable(self) -> tuple[Unreliable, ...]:
+        return tuple(u for s in self.stretches for u in s.unreliable)
+
+    def drift(self) -> list[str]:
+        """Where later windows would have chosen another diameter or threshold than the
+        held ones (by more than `DRIFT`), in words; empty where none would."""
+        lines = []
+        for s in self.stretches[1:]:
+            held_d, held_t = self.nominal_diameter, self.threshold
+            if math.isfinite(s.measured_diameter) and abs(s.measured_diameter / held_d - 1) > DRIFT:
+                lines.append(
+                    f"{s.axial_start:.2f}-{s.axial_end:.2f} m measured a diameter of "
+                    f"{1e3 * s.measured_diameter:.1f} mm; held {1e3 * held_d:.1f} mm"
+                )
+            if math.isfinite(s.would_threshold) and abs(s.would_threshold / held_t - 1) > DRIFT:
+                lines.append(
+                    f"{s.axial_start:.2f}-{s.axial_end:.2f} m would have judged defects from "
+                    f"{1e3 * s.would_threshold:.2f} mm; held {1e3 * held_t:.2f} mm"
+                )
+        return lines
+
+    def summary(self) -> dict:
+        """The inspection so far, ready for JSON: the held ``nominal_diameter`` and
+        ``threshold`` (metres), ``inspected_to`` (m), ``stations`` (`station_summary`),
+        one dict per stretch (its ends, measured diameter, would-be threshold and
+        seconds), ``defects`` (`defect_table`, numbered by axial position), ``joints``,
+        ``branches``, ``unreliable`` and ``drift`` (`drift`)."""
+        return {
+            "nominal_diameter": self.nominal_diameter,
+            "threshold": self.threshold,
+            "inspected_to": self._axial_done,
+            "stations": station_summary(self.ovality()),
+            "stretches": [
+                {
+                    "axial_start": s.axial_start,
+                    "axial_end": s.axial_end,
+                    "measured_diameter": _finite(s.measured_diameter),
+                    "would_threshold": _finite(s.would_threshold),
+                    "seconds": s.seconds,
+                }
+                for s in self.stretches
+            ],
+            "defects": defect_table(self.defects()),
+            "joints": joint_table(self.joints()),
+            "branches": [
+                {"axial": b.axial, "clock": b.clock, "area": b.area}
+                for s in self.stretches
+                for b in s.branches
+            ],
+            "unreliable": [
+                {"axial_start": u.axial_start, "axial_end": u.axial_end, "reason": u.reason}
+                for u in self.unreliable()
+            ],
+            "drift": self.drift(),
+        }
+
+    def write(self, folder) -> None:
+        """Write `LIVE_FILES` to `folder`, each atomically: the summary and the tables of
+        defects, joints and stations so far."""
+        folder = Path(folder)
+        json_name, defects_name, joints_name, ovality_name = LIVE_FILES
+        write_csv(folder / defects_name, DEFECT_COLUMNS, defect_table(self.defects()))
+        write_csv(folder / joints_name, JOINT_COLUMNS, joint_table(self.joints()))
+        write_csv(
+            folder / ovality_name, OVALITY_COLUMNS, ovality_table(self.ovality(), self.unreliable())
+        )
+        io.write_json(folder / json_name, self.summary())
+
+    def close(self) -> None:
+        """Warn where later windows would have chosen otherwise (`drift`)."""
+        lines = self.drift()
+        if lines:
+            warnings.warn(
+                "the live inspection held its first window's diameter and threshold, which "
+                "later stretches would have chosen otherwise: " + "; ".join(lines)
+                + "; give --nominal-diameter and --threshold-mm",
+                SurfaceWarning,
+                stacklevel=3,
+            )
+
+    # ---------------------------------------------------------------------- the machinery
+
+    def _unit(self) -> float:
+        """The radius windows are measured in, metres."""
+        if self.nominal_diameter is not None:
+            return 0.5 * self.nominal_diameter
+        return self._radius if self._radius else 1.0
+
+    def _step(self) -> float:
+        return self.step if self.step is not None else STEP * self._unit()
+
+    def _window(self, front: float) -> Stretch | None:
+        """Inspect the blocks from `MARGIN` radii before the reports' end up to `front`,
+        report the stretch up to `TAIL` radii short of it (all, at the end); None where the
+        first window fits no pipe yet."""
+        start = time.perf_counter()
+        final = math.isinf(front)
+        unit = self._unit()
+        low = self._done - MARGIN * unit
+        end = math.inf if final else front - TAIL * unit
+        chosen = sorted(k for k, b in self._blocks.items() if low <= b[0] <= front)
+        meshes = [self._blocks[k][1] for k in chosen if self._blocks[k][1] is not None]
+        points = np.concatenate([self._blocks[k][2] for k in chosen])
+        viewpoints = np.concatenate([self._blocks[k][3] for k in chosen])
+        order = np.argsort(self.position(viewpoints), kind="stable")  # as the robot went
+        try:
+            if not meshes:
+                raise InputError("no surface")
+            found = inspect_pipe(
+                weld_coincident(meshes)[0],
+                points[order],
+                viewpoints=viewpoints[order],
+                nominal_diameter=self.nominal_diameter,
+                threshold=self.threshold,
+                up=self._up,
+                rng=self.rng,
+            )
+        except InputError as error:
+            if not self.stretches and not final:
+                return None  # too little yet: the first window waits for more
+            return self._not_inspected(end, str(error), time.perf_counter() - start)
+        pipe = found.pipe
+        if not self.stretches:
+            self.nominal_diameter = self.nominal_diameter or 2.0 * pipe.radius
+            self.threshold = self.threshold or found.defects.threshold
+        first = not self.stretches
+        if first:
+            self.nominal_diameter = self.nominal_diameter or 2.0 * pipe.radius
+            self.threshold = self.threshold or found.defects.threshold
+        # The report, in the window's axial positions: from where the last one ended (the
+        # run's start for the first) to the tail's start (the pipe's end for the last).
+        a_low = -math.inf if first else self._axial_at(pipe, self._done, -math.inf)
+        a_high = math.inf if final else self._axial_at(pipe, end, pipe.length)
+        offset = 0.0 if first else self._axial_done - a_low
+        a_start, a_end = (0.0 if first else a_low), min(a_high, pipe.length)
+
+        def inside(axial: float) -> bool:
+            return a_low <= axial < a_high
+
+        def shifted(record, *names):
+            return replace(record, **{n: getattr(record, n) + offset for n in names})
+
+        kept = (found.ovality.axial >= a_low) & (found.ovality.axial < a_high)
+        ovality = _stations(found.ovality, kept, offset)
+        defects = sorted(
+            (shifted(d, "axial", "axial_start", "axial_end")
+             for d in found.defects.defects if inside(d.axial)),
+            key=lambda d: d.axial,
+        )  # fmt: skip
+        unreliable = tuple(
+            Unreliable(max(u.axial_start, a_start) + offset, min(u.axial_end, a_end) + offset,
+                       u.reason)
+            for u in pipe.unreliable
+            if u.axial_end >= a_low and u.axial_start < a_high
+        )  # fmt: skip
+        stretch = Stretch(
+            axial_start=a_start + offset,
+            axial_end=a_end + offset,
+            ovality=ovality,
+            defects=tuple(defects),
+            joints=tuple(shifted(j, "axial") for j in found.joints if inside(j.axial)),
+            branches=tuple(shifted(b, "axial") for b in found.defects.branches if inside(b.axial)),
+            unreliable=unreliable,
+            measured_diameter=2.0 * pipe.measured_radius,
+            would_threshold=smallest_depth(found.wall, pipe),
+            seconds=time.perf_counter() - start,
+        )
+        # The next window's 12 o'clock: this one's at the next window's start.
+        a_next = self._axial_at(pipe, end - MARGIN * unit, 0.0) if not final else a_end
+        self._up = pipe._at(np.array([a_next]))[2][0]
+        return self._reported(stretch, end)
+
+    def _not_inspected(self, end: float, reason: str, seconds: float) -> Stretch:
+        """A stretch no pipe was fitted to, with a warning: one unreliable stretch, as long
+        as its stretch of the path."""
+        warnings.warn(f"a stretch of the run was not inspected: {reason}", SurfaceWarning,
+                      stacklevel=4)  # fmt: skip
+        if math.isinf(end):
+            end = max(b[0] for b in self._blocks.values())
+        a0 = self._axial_done
+        a1 = a0 + max(end - max(self._done, 0.0), 0.0)
+        none = _stations(None, np.zeros(0, dtype=bool), 0.0)
+        stretch = Stretch(a0, a1, none, (), (), (), (Unreliable(a0, a1, f"not inspected: "
+                          f"{reason}"),), math.nan, math.nan, seconds)  # fmt: skip
+        return self._reported(stretch, end)
+
+    def _reported(self, stretch: Stretch, end: float) -> Stretch:
+        """Record `stretch`, move the reports' end to `end`, and forget the blocks no later
+        window reads."""
+        self.stretches.append(stretch)
+        self._done, self._axial_done = end, stretch.axial_end
+        keep = self._done - MARGIN * self._unit()
+        self._blocks = {k: b for k, b in self._blocks.items() if b[0] >= keep and
+                        not math.isinf(end)}  # fmt: skip
+        return stretch
+
+    def _axial_at(self, pipe, position: float, otherwise: float) -> float:
+        """The axial position on `pipe` of the path's point at `position` (m along it)."""
+        point = self._path_point(position)
+        axial = float(pipe.locate(point[None])[0][0])
+        return axial if math.isfinite(axial) else otherwise
+
+    def _path_point(self, position: float) -> np.ndarray:
+        """(3,) the point of the sensors' path at `position` metres along it."""
+        nodes = self.path
+        arc = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(nodes, axis=0), axis=1))]
+        return np.array([np.interp(position, arc, nodes[:, i]) for i in range(3)])
+
+
+#: The fields of an `Ovality`, in order.
+_OVALITY = ("axial", "ovality", "d_max", "d_mean", "d_min", "major_clock", "offset", "scatter")
+
+
+def _stations(found: Ovality | None, kept: np.ndarray, offset: float) -> Ovality:
+    """The stations `kept` (K,) bool of `found` (none where None), `offset` metres along."""
+    if found is None:
+        shapes = {"offset": (0, 2), "scatter": (0, 5)}
+        return Ovality(*(np.zeros(shapes.get(n, (0,))) for n in _OVALITY))
+    values = [getattr(found, n)[kept] for n in _OVALITY]
+    return Ovality(values[0] + offset, *values[1:])
+
+
+def _finite(value: float) -> float | None:
+    return float(value) if math.isfinite(value) else None
