@@ -67,6 +67,8 @@ TAIL = 2.0
 #: Relative change of the diameter or the threshold at which a later window would have
 #: chosen differently from the held ones (as the reconstruction's parameters).
 DRIFT = 0.25
+#: Positions placed on the path at a time (a (CHUNK, scans, 3) array).
+CHUNK = 4096
 #: The files `LiveInspection.write` writes, rewritten as each window is reported.
 LIVE_FILES = ("live-inspection.json", "live-defects.csv", "live-joints.csv", "live-ovality.csv")
 
@@ -153,6 +155,7 @@ class LiveInspection:
         self._radius: float | None = None  # guessed, then the held nominal radius
         self._blocks: dict = {}  # block -> (path position, mesh, points, viewpoints)
         self._done = -math.inf  # path position the reports reach
+        self._failed = -math.inf  # the front at which the first window last fitted no pipe
         self._axial_done = 0.0  # ... and its axial position along the run
         if self.folder is not None:
             self.folder.mkdir(parents=True, exist_ok=True)
@@ -180,19 +183,22 @@ class LiveInspection:
 
     def position(self, x: np.ndarray) -> np.ndarray:
         """(M,) path position (metres along the sensors' path) of the nearest path point to
-        each of `x` (M, 3)."""
+        each of `x` (M, 3), `CHUNK` of them at a time."""
         nodes = self.path
         if nodes.shape[0] < 2:
             return np.zeros(x.shape[0])
         a, b = nodes[:-1], nodes[1:]
         length = np.linalg.norm(b - a, axis=1)
         arc = np.r_[0.0, np.cumsum(length)]
-        t = np.einsum("msk,sk->ms", x[:, None] - a[None], b - a) / np.maximum(length**2, 1e-300)
-        t = np.clip(t, 0.0, 1.0)
-        foot = a[None] + t[..., None] * (b - a)[None]
-        nearest = np.argmin(np.linalg.norm(x[:, None] - foot, axis=2), axis=1)
-        rows = np.arange(x.shape[0])
-        return arc[nearest] + t[rows, nearest] * length[nearest]
+        out = np.empty(x.shape[0])
+        for lo in range(0, x.shape[0], CHUNK):
+            part = x[lo : lo + CHUNK, None] - a[None]  # (m, S, 3)
+            t = np.clip(np.einsum("msk,sk->ms", part, b - a) / np.maximum(length**2, 1e-300), 0, 1)
+            gap = np.linalg.norm(part - t[..., None] * (b - a)[None], axis=2)
+            nearest = np.argmin(gap, axis=1)
+            rows = np.arange(nearest.size)
+            out[lo : lo + CHUNK] = arc[nearest] + t[rows, nearest] * length[nearest]
+        return out
 
     def advance(self, front: float, deadline: float = math.inf) -> list[Stretch]:
         """Inspect the windows the finished `front` (path position; ``inf`` once every block
@@ -201,8 +207,9 @@ class LiveInspection:
         reported = []
         while self._blocks:
             final = math.isinf(front)
-            if not final and front - TAIL * self._unit() - max(self._done, 0.0) < self._step():
-                break
+            since = max(self._done, self._failed - TAIL * self._unit(), 0.0)
+            if not final and front - TAIL * self._unit() - since < self._step():
+                break  # the front has not moved a step past the last report or failure
             stretch = self._window(front)
             if stretch is None:
                 break
@@ -337,7 +344,9 @@ class LiveInspection:
         meshes = [self._blocks[k][1] for k in chosen if self._blocks[k][1] is not None]
         points = np.concatenate([self._blocks[k][2] for k in chosen])
         viewpoints = np.concatenate([self._blocks[k][3] for k in chosen])
-        order = np.argsort(self.position(viewpoints), kind="stable")  # as the robot went
+        sensors, inverse = np.unique(viewpoints, axis=0, return_inverse=True)
+        along = self.position(sensors)[inverse.ravel()]
+        order = np.argsort(along, kind="stable")  # as the robot went
         try:
             if not meshes:
                 raise InputError("no surface")
@@ -352,7 +361,8 @@ class LiveInspection:
             )
         except InputError as error:
             if not self.stretches and not final:
-                return None  # too little yet: the first window waits for more
+                self._failed = front  # too little yet: the first window waits a step
+                return None
             return self._not_inspected(end, str(error), time.perf_counter() - start)
         pipe = found.pipe
         if not self.stretches:
