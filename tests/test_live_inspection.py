@@ -17,7 +17,7 @@ from zeroset.synthetic import Defect
 LENGTH = 6.0
 #: Two dents, reported by different windows, on different sides of the pipe.
 DENTS = (Defect("dent", 2.0, 90.0, 0.015, 0.1), Defect("dent", 4.5, 210.0, 0.010, 0.1))
-STEP = 0.8
+STEP = 0.6
 
 
 @pytest.fixture(scope="module")
@@ -43,7 +43,7 @@ def grown(tmp_path_factory):
 def test_stretches_are_reported_while_the_scans_come_and_join_end_to_end(grown):
     inspection, during, last, *_ = grown
     early = [s for update in during for s in update]
-    assert len(early) >= 3 and len(last) == 1
+    assert len(early) >= 2 and len(last) == 1
     assert inspection.stretches == [*early, *last]
     ends = [(s.axial_start, s.axial_end) for s in inspection.stretches]
     assert ends[0][0] == 0.0

@@ -594,43 +594,35 @@ class LiveReconstruction:
 
     def _front(self) -> float:
         """How far along the sensors' path every block is finished (``inf`` when all
-        are): the path's position nearest the first block not finished, or the first
-        sensor from which the newest one's reach (a block past it) still reaches."""
+        are): half a block's diagonal short of the path's position nearest the middle of
+        the first block not finished, or of the first sensor within reach of the newest
+        (and so of blocks that may still get points)."""
         pending = [i for i, b in self._blocks.items() if not b.finished]
         if self._final and not pending:
             return np.inf
         size = self._block_size()
         centres = (np.asarray(pending, dtype=np.float64).reshape(-1, 3) + 0.5) * size
         nodes = self.inspection.path - self._origin
-        near = np.linalg.norm(nodes - self._sensor, axis=1) <= self._reach() + np.sqrt(3) * size
-        return float(min(self.inspection.position(np.r_[centres, nodes[near]] + self._origin),
-                         default=np.inf))
+        near = np.linalg.norm(nodes - self._sensor, axis=1) <= self._reach()
+        along = self.inspection.position(np.r_[centres, nodes[near]] + self._origin)
+        return float(min(along, default=np.inf)) - 0.5 * np.sqrt(3.0) * size
 
     def _next_step(self, reach: int):
         """("finish" or "contour", block index) of the oldest sealed block that can be
-        finished (its neighbours contoured, those before it finished), else of the oldest
-        that can be contoured; None where none can."""
+        finished (its neighbours contoured), else of the oldest that can be contoured; None
+        where none can."""
         ready = sorted(
             (b.order, index) for index, b in self._blocks.items() if b.sealed and not b.finished
         )
         for _, index in ready:
             block = self._blocks[index]
-            if block.contoured and self._all_contoured(index) and self._lower_finished(index):
+            if block.contoured and self._all_contoured(index):
                 return "finish", index
         for _, index in ready:
             block = self._blocks[index]
             if not block.contoured and not block.stuck and self._all_sealed(index, reach):
                 return "contour", index
         return None
-
-    def _lower_finished(self, index) -> bool:
-        """Whether the neighbours of `index` before it (in index order) are finished: a
-        seam vertex then keeps the copy of the lower block, whatever the scans' order."""
-        return all(
-            self._blocks[n].finished
-            for n in self._neighbours(index)
-            if n < tuple(index) and n in self._blocks
-        )
 
     def waiting(self) -> int:
         """Blocks sealed but not yet finished: the work the scans' budgets left."""
@@ -775,7 +767,7 @@ class LiveReconstruction:
             centre = self._origin + (np.asarray(index) + 0.5) * self._block_size()
             placed = None if mesh is None else mesh.translated(self._origin)
             self.inspection.block(index, placed, local + self._origin, views + self._origin,
-                                  centre)  # fmt: skip
+                                  centre, self._block_size())  # fmt: skip
         return mesh
 
     def _final_mesh(self, index) -> Mesh | None:

@@ -170,11 +170,14 @@ class LiveInspection:
             self._radius = float(np.percentile(ranges, 5.0))
 
     def block(self, index, mesh: Mesh | None, points: np.ndarray, viewpoints: np.ndarray,
-              centre: np.ndarray) -> None:  # fmt: skip
+              centre: np.ndarray, size: float) -> None:  # fmt: skip
         """Take a finished block: its final mesh (None where it has none), its points (N, 3)
-        and their sensors (N, 3), and its centre (3,), all input coordinates."""
+        and their sensors (N, 3), and its centre (3,), all input coordinates, and its edge's
+        length: it spans the path from half its diagonal before its centre's position to
+        half after."""
         position = float(self.position(centre[None])[0])
-        self._blocks[tuple(index)] = (position, mesh, points, viewpoints)
+        half = 0.5 * np.sqrt(3.0) * size
+        self._blocks[tuple(index)] = (position - half, position + half, mesh, points, viewpoints)
 
     @property
     def path(self) -> np.ndarray:
@@ -340,10 +343,10 @@ class LiveInspection:
         unit = self._unit()
         low = self._done - MARGIN * unit
         end = math.inf if final else front - TAIL * unit
-        chosen = sorted(k for k, b in self._blocks.items() if low <= b[0] <= front)
-        meshes = [self._blocks[k][1] for k in chosen if self._blocks[k][1] is not None]
-        points = np.concatenate([self._blocks[k][2] for k in chosen])
-        viewpoints = np.concatenate([self._blocks[k][3] for k in chosen])
+        chosen = sorted(k for k, b in self._blocks.items() if b[1] >= low and b[0] <= front)
+        meshes = [self._blocks[k][2] for k in chosen if self._blocks[k][2] is not None]
+        points = np.concatenate([self._blocks[k][3] for k in chosen])
+        viewpoints = np.concatenate([self._blocks[k][4] for k in chosen])
         sensors, inverse = np.unique(viewpoints, axis=0, return_inverse=True)
         along = self.position(sensors)[inverse.ravel()]
         order = np.argsort(along, kind="stable")  # as the robot went
@@ -375,7 +378,10 @@ class LiveInspection:
         # The report, in the window's axial positions: from where the last one ended (the
         # run's start for the first) to the tail's start (the pipe's end for the last).
         a_low = -math.inf if first else self._axial_at(pipe, self._done, -math.inf)
-        a_high = math.inf if final else self._axial_at(pipe, end, pipe.length)
+        a_high = math.inf if final else self._axial_at(pipe, end, math.nan)
+        if math.isnan(a_high):  # the path's point lies past the data: end at the data's end
+            a_high = pipe.length
+            end = max(float(self.position(pipe._at(np.array([pipe.length]))[0])[0]), self._done)
         offset = 0.0 if first else self._axial_done - a_low
         a_start, a_end = (0.0 if first else a_low), min(a_high, pipe.length)
 
@@ -421,7 +427,7 @@ class LiveInspection:
         warnings.warn(f"a stretch of the run was not inspected: {reason}", SurfaceWarning,
                       stacklevel=4)  # fmt: skip
         if math.isinf(end):
-            end = max(b[0] for b in self._blocks.values())
+            end = max(b[1] for b in self._blocks.values())
         a0 = self._axial_done
         a1 = a0 + max(end - max(self._done, 0.0), 0.0)
         none = _stations(None, np.zeros(0, dtype=bool), 0.0)
@@ -435,7 +441,7 @@ class LiveInspection:
         self.stretches.append(stretch)
         self._done, self._axial_done = end, stretch.axial_end
         keep = self._done - MARGIN * self._unit()
-        self._blocks = {k: b for k, b in self._blocks.items() if b[0] >= keep and
+        self._blocks = {k: b for k, b in self._blocks.items() if b[1] >= keep and
                         not math.isinf(end)}  # fmt: skip
         return stretch
 
