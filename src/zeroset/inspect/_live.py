@@ -64,6 +64,9 @@ MARGIN = 4.0
 #: Radii short of the front that a window leaves to the next one: the front is an end of
 #: the data to it.
 TAIL = 2.0
+#: Steps the finished front may run ahead of the reports before a window is inspected
+#: past the scan's budget (`LiveInspection.behind`): the blocks held stay a window's.
+BEHIND = 2.0
 #: Relative change of the diameter or the threshold at which a later window would have
 #: chosen differently from the held ones (as the reconstruction's parameters).
 DRIFT = 0.25
@@ -210,8 +213,7 @@ class LiveInspection:
         reported = []
         while self._blocks:
             final = math.isinf(front)
-            since = max(self._done, self._failed - TAIL * self._unit(), 0.0)
-            if not final and front - TAIL * self._unit() - since < self._step():
+            if not final and self._ahead(front) < 1.0:
                 break  # the front has not moved a step past the last report or failure
             stretch = self._window(front)
             if stretch is None:
@@ -222,6 +224,10 @@ class LiveInspection:
         if reported and self.folder is not None:
             self.write(self.folder)
         return reported
+
+    def behind(self, front: float) -> bool:
+        """Whether the finished `front` has run `BEHIND` steps or more past the reports."""
+        return self._ahead(front) >= BEHIND
 
     # ------------------------------------------------------------------------ the results
 
@@ -333,6 +339,12 @@ class LiveInspection:
 
     def _step(self) -> float:
         return self.step if self.step is not None else STEP * self._unit()
+
+    def _ahead(self, front: float) -> float:
+        """Steps the `front` (less the tail) lies past the last report, or past the front
+        at which the first window last fitted no pipe."""
+        since = max(self._done, self._failed - TAIL * self._unit(), 0.0)
+        return (front - TAIL * self._unit() - since) / self._step()
 
     def _window(self, front: float) -> Stretch | None:
         """Inspect the blocks from `MARGIN` radii before the reports' end up to `front`,
