@@ -117,3 +117,16 @@ def test_later_windows_that_would_choose_otherwise_are_reported():
 def test_bad_options_are_refused(option):
     with pytest.raises(InputError, match=option):
         LiveInspection(**{option: -1.0})
+
+
+def test_a_window_that_fits_no_pipe_is_reported_as_not_inspected():
+    inspection = LiveInspection()
+    for x in (0.0, 1.0, 2.0):
+        inspection.scan(np.array([x, 0.0, 0.0]), np.full(10, 0.2))
+    points = np.random.default_rng(0).normal(size=(100, 3))
+    inspection.block((0, 0, 0), None, points, np.zeros((100, 3)), np.array([1.0, 0, 0]), 1.0)
+    with pytest.warns(SurfaceWarning, match="not inspected: no surface"):
+        (stretch,) = inspection.advance(np.inf)
+    (gap,) = stretch.unreliable
+    assert gap.reason == "not inspected: no surface" and stretch.axial_end > 0.0
+    assert inspection.inspected_to == stretch.axial_end

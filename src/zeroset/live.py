@@ -21,6 +21,9 @@ goes through three states:
 
 Blocks that no scan has sealed yet are previewed: those the newest scan put points into
 within ``preview`` of its sensor are fitted and contoured from the points so far.
+
+With an ``inspection`` (`zeroset.inspect.LiveInspection`) each finished block's mesh and
+points go to it, and it inspects the pipe in windows as the finished front moves on.
 """
 
 from __future__ import annotations
