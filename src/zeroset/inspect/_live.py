@@ -380,16 +380,14 @@ class LiveInspection:
                 return None
             return self._not_inspected(end, str(error), time.perf_counter() - start)
         pipe = found.pipe
-        if not self.stretches:
-            self.nominal_diameter = self.nominal_diameter or 2.0 * pipe.radius
-            self.threshold = self.threshold or found.defects.threshold
         first = not self.stretches
         if first:
             self.nominal_diameter = self.nominal_diameter or 2.0 * pipe.radius
             self.threshold = self.threshold or found.defects.threshold
         # The report, in the window's axial positions: from where the last one ended (the
         # run's start for the first) to the tail's start (the pipe's end for the last).
-        a_low = -math.inf if first else self._axial_at(pipe, self._done, -math.inf)
+        # (Where the last report's end lies before this window's data, its data's start.)
+        a_low = -math.inf if first else self._axial_at(pipe, self._done, 0.0)
         a_high = math.inf if final else self._axial_at(pipe, end, math.nan)
         if math.isnan(a_high):  # the path's point lies past the data: end at the data's end
             a_high = pipe.length
