@@ -10,9 +10,9 @@ import pytest
 from tests.test_live import BLOCK_CUBES, RADIUS, RANGE, _scans
 from zeroset.errors import InputError, SurfaceWarning
 from zeroset.inspect import LIVE_FILES, LiveInspection, Stretch, inspect_pipe
-from zeroset.inspect._live import _stations
+from zeroset.inspect._live import MARGIN, _stations
 from zeroset.live import LiveReconstruction
-from zeroset.synthetic import Defect
+from zeroset.synthetic import Defect, PipePath, scan_pipe_run
 
 LENGTH = 6.0
 #: Two dents, reported by different windows, on different sides of the pipe.
@@ -130,3 +130,36 @@ def test_a_window_that_fits_no_pipe_is_reported_as_not_inspected():
     (gap,) = stretch.unreliable
     assert gap.reason == "not inspected: no surface" and stretch.axial_end > 0.0
     assert inspection.inspected_to == stretch.axial_end
+
+
+@pytest.mark.slow
+def test_12_oclock_is_carried_up_a_bend_into_a_vertical_leg():
+    """A window that starts on a vertical leg gets no 12 o'clock from the world's up (the
+    convention falls back to +y there, a quarter turn off); the last window's carried up
+    keeps the clock of the batch inspection, which carries it through the bend."""
+    path = PipePath.build([("straight", 2.0), ("bend", 0.6, 90.0, 0.0), ("straight", 5.5)])
+    dent = Defect("dent", 7.0, 90.0, 0.012, 0.1)  # on the vertical leg
+    scans = []
+    for k, station in enumerate(np.arange(0.25, path.length, 0.5)):
+        scan = scan_pipe_run(path, radius=RADIUS, stations=[station], rotation_step=4.0,
+                             defects=(dent,), rng=k)  # fmt: skip
+        near = np.linalg.norm(scan.points - scan.viewpoints, axis=1) <= RANGE
+        scans.append((scan.points[near], scan.viewpoints[near]))
+    inspection = LiveInspection(step=0.5)
+    live = LiveReconstruction(
+        reach=RANGE, block_cubes=BLOCK_CUBES, budget=np.inf, inspection=inspection
+    )
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", SurfaceWarning)
+        for points, viewpoints in scans:
+            live.add(points, viewpoints)
+        live.close()
+    bend_end = 2.0 + 0.6 * np.pi / 2
+    (found,) = inspection.defects()
+    (window,) = [s for s in inspection.stretches if s.axial_start <= found.axial < s.axial_end]
+    assert window.axial_start - MARGIN * RADIUS > bend_end  # its window starts on the leg
+    points = np.concatenate([s[0] for s in scans])
+    viewpoints = np.concatenate([s[1] for s in scans])
+    (batch,) = inspect_pipe(live.mesh(), points, viewpoints=viewpoints).defects.defects
+    assert abs(found.clock - batch.clock) < 5.0 and abs(found.clock - dent.clock) < 5.0
+    assert abs(found.axial - dent.axial) < 0.03
