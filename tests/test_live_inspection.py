@@ -10,7 +10,7 @@ import pytest
 from tests.test_live import BLOCK_CUBES, RADIUS, RANGE, _scans
 from zeroset.errors import InputError, SurfaceWarning
 from zeroset.inspect import LIVE_FILES, LiveInspection, Stretch, inspect_pipe
-from zeroset.inspect._live import MARGIN, _stations
+from zeroset.inspect._live import MARGIN, _no_stations
 from zeroset.live import LiveReconstruction
 from zeroset.synthetic import Defect, PipePath, scan_pipe_run
 
@@ -98,8 +98,7 @@ def test_the_path_position_is_the_arc_length_to_the_nearest_point():
 
 
 def _stretch(start, end, diameter, threshold):
-    none = _stations(None, np.zeros(0, dtype=bool), 0.0)
-    return Stretch(start, end, none, (), (), (), (), diameter, threshold, 0.0)
+    return Stretch(start, end, _no_stations(), (), (), (), (), diameter, threshold, 0.0)
 
 
 def test_later_windows_that_would_choose_otherwise_are_reported():

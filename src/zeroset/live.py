@@ -606,12 +606,15 @@ class LiveReconstruction:
         pending = [i for i, b in self._blocks.items() if not b.finished]
         if self._final and not pending:
             return np.inf
-        size = self._block_size()
-        centres = (np.asarray(pending, dtype=np.float64).reshape(-1, 3) + 0.5) * size
         nodes = self.inspection.path - self._origin
         near = np.linalg.norm(nodes - self._sensor, axis=1) <= self._reach()
-        along = self.inspection.position(np.r_[centres, nodes[near]] + self._origin)
-        return float(min(along, default=np.inf)) - 0.5 * np.sqrt(3.0) * size
+        along = self.inspection.position(np.r_[self._centres(pending), nodes[near]] + self._origin)
+        return float(min(along, default=np.inf)) - 0.5 * np.sqrt(3.0) * self._block_size()
+
+    def _centres(self, indices) -> np.ndarray:
+        """(K, 3) the middles of blocks `indices` (K index tuples), local frame."""
+        blocks = np.asarray(indices, dtype=np.float64).reshape(-1, 3)
+        return (blocks + 0.5) * self._block_size()
 
     def _next_step(self, reach: int):
         """("finish" or "contour", block index) of the oldest sealed block that can be
@@ -770,7 +773,7 @@ class LiveReconstruction:
         if self.inspection is not None:
             block = self._blocks[index]
             local, views = block.cloud()
-            centre = self._origin + (np.asarray(index) + 0.5) * self._block_size()
+            centre = self._centres([index])[0] + self._origin
             placed = None if mesh is None else mesh.translated(self._origin)
             self.inspection.block(index, placed, local + self._origin, views + self._origin,
                                   centre, self._block_size())  # fmt: skip

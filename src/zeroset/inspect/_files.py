@@ -19,6 +19,7 @@ from ._pictures import clock_label
 
 __all__ = [
     "ASSESS_NOTE",
+    "branch_table",
     "DEFECT_COLUMNS",
     "JOINT_COLUMNS",
     "OVALITY_COLUMNS",
@@ -219,12 +220,14 @@ def inspection_summary(inspection: Inspection) -> dict:
             for number, defect in enumerate(found.defects, start=1)
         ],
         "joints": joint_rows(inspection),
-        "branches": [
-            {**_fields(branch), "clock_time": clock_label(branch.clock)}
-            for branch in found.branches
-        ],
+        "branches": branch_table(found.branches),
         "timings": dict(inspection.timings),
     }
+
+
+def branch_table(branches) -> list[dict]:
+    """One dict per `Branch`, with its fields and ``clock_time`` (``"h:mm"``)."""
+    return [{**_fields(b), "clock_time": clock_label(b.clock)} for b in branches]
 
 
 def _fields(record) -> dict:

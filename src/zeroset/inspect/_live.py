@@ -23,7 +23,7 @@ from __future__ import annotations
 import math
 import time
 import warnings
-from dataclasses import dataclass, replace
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -31,6 +31,7 @@ import numpy as np
 from .. import io
 from .._validate import as_points
 from ..errors import InputError, SurfaceWarning
+from ..live import PARAMETER_DRIFT
 from ..tile_output import weld_coincident
 from ..types import Mesh
 from ._centreline import Unreliable
@@ -39,6 +40,7 @@ from ._files import (
     DEFECT_COLUMNS,
     JOINT_COLUMNS,
     OVALITY_COLUMNS,
+    branch_table,
     defect_table,
     joint_table,
     ovality_table,
@@ -67,9 +69,6 @@ TAIL = 2.0
 #: Steps the finished front may run ahead of the reports before a window is inspected
 #: past the scan's budget (`LiveInspection.behind`): the blocks held stay a window's.
 BEHIND = 2.0
-#: Relative change of the diameter or the threshold at which a later window would have
-#: chosen differently from the held ones (as the reconstruction's parameters).
-DRIFT = 0.25
 #: Positions placed on the path at a time (a (CHUNK, scans, 3) array).
 CHUNK = 4096
 #: The files `LiveInspection.write` writes, rewritten as each window is reported.
@@ -240,30 +239,35 @@ class LiveInspection:
         """Every station reported so far, by axial position."""
         parts = [s.ovality for s in self.stretches]
         if not parts:
-            return _stations(None, np.zeros(0, dtype=bool), 0.0)
+            return _no_stations()
         return Ovality(*(np.concatenate([getattr(p, n) for p in parts]) for n in _OVALITY))
 
     def defects(self) -> tuple[Defect, ...]:
+        """Every defect reported so far, by axial position."""
         return tuple(d for s in self.stretches for d in s.defects)
 
     def joints(self) -> tuple[Joint, ...]:
+        """Every joint reported so far, by axial position."""
         return tuple(j for s in self.stretches for j in s.joints)
 
     def unreliable(self) -> tuple[Unreliable, ...]:
+        """Every unreliable stretch reported so far (those not inspected too)."""
         return tuple(u for s in self.stretches for u in s.unreliable)
 
     def drift(self) -> list[str]:
         """Where later windows would have chosen another diameter or threshold than the
-        held ones (by more than `DRIFT`), in words; empty where none would."""
+        held ones (by more than `zeroset.live.PARAMETER_DRIFT`, as the reconstruction's
+        parameters), in words; empty where none would."""
         lines = []
         for s in self.stretches[1:]:
             held_d, held_t = self.nominal_diameter, self.threshold
-            if math.isfinite(s.measured_diameter) and abs(s.measured_diameter / held_d - 1) > DRIFT:
+            drift = PARAMETER_DRIFT
+            if math.isfinite(s.measured_diameter) and abs(s.measured_diameter / held_d - 1) > drift:
                 lines.append(
                     f"{s.axial_start:.2f}-{s.axial_end:.2f} m measured a diameter of "
                     f"{1e3 * s.measured_diameter:.1f} mm; held {1e3 * held_d:.1f} mm"
                 )
-            if math.isfinite(s.would_threshold) and abs(s.would_threshold / held_t - 1) > DRIFT:
+            if math.isfinite(s.would_threshold) and abs(s.would_threshold / held_t - 1) > drift:
                 lines.append(
                     f"{s.axial_start:.2f}-{s.axial_end:.2f} m would have judged defects from "
                     f"{1e3 * s.would_threshold:.2f} mm; held {1e3 * held_t:.2f} mm"
@@ -293,15 +297,8 @@ class LiveInspection:
             ],
             "defects": defect_table(self.defects()),
             "joints": joint_table(self.joints()),
-            "branches": [
-                {"axial": b.axial, "clock": b.clock, "area": b.area}
-                for s in self.stretches
-                for b in s.branches
-            ],
-            "unreliable": [
-                {"axial_start": u.axial_start, "axial_end": u.axial_end, "reason": u.reason}
-                for u in self.unreliable()
-            ],
+            "branches": branch_table(b for s in self.stretches for b in s.branches),
+            "unreliable": [asdict(u) for u in self.unreliable()],
             "drift": self.drift(),
         }
 
@@ -391,7 +388,8 @@ class LiveInspection:
         a_high = math.inf if final else self._axial_at(pipe, end, math.nan)
         if math.isnan(a_high):  # the path's point lies past the data: end at the data's end
             a_high = pipe.length
-            end = max(float(self.position(pipe._at(np.array([pipe.length]))[0])[0]), self._done)
+            data_end = pipe.position(pipe.length, 0.0, distance=0.0)  # its centre there
+            end = max(float(self.position(data_end)[0]), self._done)
         offset = 0.0 if first else self._axial_done - a_low
         a_start, a_end = (0.0 if first else a_low), min(a_high, pipe.length)
 
@@ -428,7 +426,7 @@ class LiveInspection:
         )
         # The next window's 12 o'clock: this one's at the next window's start.
         a_next = self._axial_at(pipe, end - MARGIN * unit, 0.0) if not final else a_end
-        self._up = pipe._at(np.array([a_next]))[2][0]
+        self._up = pipe.directions(a_next, 0.0)[1][0]  # 12 o'clock there
         return self._reported(stretch, end)
 
     def _not_inspected(self, end: float, reason: str, seconds: float) -> Stretch:
@@ -440,7 +438,7 @@ class LiveInspection:
             end = max(b[1] for b in self._blocks.values())
         a0 = self._axial_done
         a1 = a0 + max(end - max(self._done, 0.0), 0.0)
-        none = _stations(None, np.zeros(0, dtype=bool), 0.0)
+        none = _no_stations()
         stretch = Stretch(a0, a1, none, (), (), (), (Unreliable(a0, a1, f"not inspected: "
                           f"{reason}"),), math.nan, math.nan, seconds)  # fmt: skip
         return self._reported(stretch, end)
@@ -472,11 +470,13 @@ class LiveInspection:
 _OVALITY = ("axial", "ovality", "d_max", "d_mean", "d_min", "major_clock", "offset", "scatter")
 
 
-def _stations(found: Ovality | None, kept: np.ndarray, offset: float) -> Ovality:
-    """The stations `kept` (K,) bool of `found` (none where None), `offset` metres along."""
-    if found is None:
-        shapes = {"offset": (0, 2), "scatter": (0, 5)}
-        return Ovality(*(np.zeros(shapes.get(n, (0,))) for n in _OVALITY))
+def _no_stations() -> Ovality:
+    shapes = {"offset": (0, 2), "scatter": (0, 5)}
+    return Ovality(*(np.zeros(shapes.get(n, (0,))) for n in _OVALITY))
+
+
+def _stations(found: Ovality, kept: np.ndarray, offset: float) -> Ovality:
+    """The stations `kept` (K,) bool of `found`, `offset` metres along."""
     values = [getattr(found, n)[kept] for n in _OVALITY]
     return Ovality(values[0] + offset, *values[1:])
 
