@@ -32,6 +32,7 @@ SECTIONS = (
     "peers",
     "holes",
     "live",
+    "live-robot",
 )
 
 INTRO = """# Benchmarks

@@ -17,6 +17,12 @@ when, against the final inspections of the live and the batch meshes with every 
 the same with each scan cropped to a 2 m range. The section
 between ``<!-- live:begin -->`` and ``<!-- live:end -->`` of docs/benchmarks.md is
 replaced.
+
+With ``--robot`` (about 40 minutes) it replays the 20 m and 40 m runs instead as the robot
+makes them, one scan every `STATION_SECONDS` (the modelled scanner's turn), to a
+``background`` live run, and once more the 20 m run back to back in the background; per
+scan, the seconds of `add` and how long after it the scan's work ended (`ScanUpdate.done`).
+It replaces the section ``live-robot``.
 """
 
 from __future__ import annotations
@@ -52,6 +58,12 @@ LENGTHS = (20.0, 40.0)
 BEND_RADIUS = 1.2
 PREVIEW = 1.0  # metres around the sensor whose open blocks a previewing run re-meshes
 RANGE = 2.0  # metres: the scanner's range in the run whose points are cropped to it
+#: Seconds the URG-04LX-like scanner of the model takes for one line: its motor turns at
+#: 600 rpm (SCIP2.0 ``PP`` reply "SCAN: 600"), a line every 100 ms.
+LINE_SECONDS = 0.1
+#: Seconds a station's scan takes to make, its ``floor(360 / ROTATION_STEP)`` lines one
+#: after the other; the robot's time to move on to the next station comes on top.
+STATION_SECONDS = np.floor(360.0 / ROTATION_STEP) * LINE_SECONDS
 #: Dents on a leg, in the first bend, on the second leg and in the second bend.
 DENTS = (
     Defect("dent", 3.0, 90.0, 0.010, 0.10),
@@ -96,20 +108,29 @@ def warm_up() -> None:
 
 
 def replay(
-    length: float, out: Path, like: Path | None = None, preview: float = 0.0, reach=None
+    length: float,
+    out: Path,
+    like: Path | None = None,
+    preview: float = 0.0,
+    reach=None,
+    pace: float = 0.0,
+    background: bool = False,
 ) -> None:
     """The live run of `length` metres, inspected as it goes; its figures to `out` (JSON),
     its mesh beside it. With `like`, the batch run's parameters, tolerance and lattice
     origin (a pickle), not inspected; with `preview`, the open blocks within it of the
     sensor previewed at every scan; with `reach`, each scan's points within it of its
-    sensor (a scanner of that range), and that reach."""
+    sensor (a scanner of that range), and that reach; with `pace`, scan k given no sooner
+    than k * pace seconds after the first; with `background`, a background live run."""
     warm_up()
     path = path_of(length)
-    seconds, points, finished, waiting, reported = [], 0, [], [], []
+    seconds, points, finished, waiting, reported, done = [], 0, [], [], [], []
     given = {} if like is None else pickle.loads(like.read_bytes())
     inspection = LiveInspection() if like is None and not preview else None
-    live = LiveReconstruction(preview=preview, inspection=inspection, reach=reach, **given)
-    made = 0.0
+    live = LiveReconstruction(
+        preview=preview, inspection=inspection, reach=reach, background=background, **given
+    )
+    made, first = 0.0, time.perf_counter()
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         for k, s in enumerate(stations(length)):
@@ -119,7 +140,9 @@ def replay(
                 near = np.linalg.norm(part.points - part.viewpoints, axis=1) <= reach
                 part = replace(part, points=part.points[near], viewpoints=part.viewpoints[near])
             made += time.perf_counter() - start
+            time.sleep(max(0.0, first + k * pace - time.perf_counter()))
             update = live.add(part.points, part.viewpoints)
+            done += [seconds for _, seconds in update.done]
             seconds.append(update.seconds)
             finished.append(len(update.finished))
             waiting.append(update.waiting)
@@ -128,6 +151,7 @@ def replay(
             points += part.points.shape[0]
             del part
         closing = live.close()
+        done += [seconds for _, seconds in closing.done]
     mesh = live.mesh()
     np.savez(out.with_suffix(".npz"), vertices=mesh.vertices, faces=mesh.faces)
     out.write_text(json.dumps({
@@ -135,6 +159,7 @@ def replay(
         "finished": finished, "waiting": waiting, "close": closing.seconds, "peak_mib": peak_mib(),
         "stats": live.summary(), "timings": {k: v for k, v in live.timings.items() if k != "scans"},
         "warnings": sorted({str(w.message) for w in caught}), "generated": made,
+        "done": done, "pace": pace, "background": background,
         "parameters": [live.parameters.rho_delta, live.parameters.cube_size],
         "inspection": None if inspection is None else {
             "summary": inspection.summary(), "reported": reported,
@@ -365,6 +390,64 @@ def inspection_lines(run: dict, batch_run: dict, ranged: dict) -> list[str]:
     return lines
 
 
+def robot(output: Path) -> None:
+    """The ``--robot`` runs and their section."""
+    with tempfile.TemporaryDirectory() as folder:
+        folder = Path(folder)
+        paced = ("--pace", f"{STATION_SECONDS:g}", "--background")
+        runs = [(f"{length:g} m, a scan every {STATION_SECONDS:g} s", _child(
+            "replay", length, folder, *paced)) for length in LENGTHS]  # fmt: skip
+        runs.append((f"{LENGTHS[0]:g} m, back to back", _child(
+            "replay", LENGTHS[0], folder, "--background")))  # fmt: skip
+    text = robot_report(runs, machine_info(), "python benchmarks/bench_live.py --robot")
+    replace_section(output, "live-robot", text)
+    print(text)
+
+
+def robot_report(runs, machine: dict, command: str) -> str:
+    """The markdown section of the ``--robot`` runs."""
+    lines = ["## Live at the robot's pace: the work in the background", ""]
+    lines += reproduce_lines(command, machine, "about 40 minutes")[:6]
+    lines += [
+        "The runs of the section above (inspected live, defaults), given to a "
+        "`LiveReconstruction(background=True)` as the robot makes them: the model's scanner "
+        f"turns a line every {LINE_SECONDS:g} s (a URG-04LX's motor turns at 600 rpm), "
+        f"{np.floor(360 / ROTATION_STEP):.0f} lines a station, so a station's scan takes "
+        f"{STATION_SECONDS:g} s before the robot moves on; scan k is given "
+        f"{STATION_SECONDS:g} k s after the first (its making included), or as soon as it is "
+        "made in the last row. add: the seconds the call took; behind: the seconds from "
+        "a scan's `add` to the end of its work in the worker (`ScanUpdate.done`), how old "
+        "the mesh is; peak memory is the process's resident peak.",
+        "",
+        "| run | scans | add median s | p95 s | largest s | behind median s | p95 s | "
+        "largest s | close s | peak MiB |",
+        "|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for name, run in runs:
+        s, behind = np.asarray(run["seconds"]), np.asarray(run["done"])
+        lines.append(
+            f"| {name} | {run['scans']} | {np.median(s):.3f} | {np.quantile(s, 0.95):.3f} | "
+            f"{s.max():.3f} | {np.median(behind):.2f} | {np.quantile(behind, 0.95):.2f} | "
+            f"{behind.max():.2f} | {run['close']:.1f} | {run['peak_mib']:,.0f} |"
+        )
+    ratio = runs[1][1]["peak_mib"] / runs[0][1]["peak_mib"]
+    lines += ["", f"Peak memory, {LENGTHS[1]:g} m over {LENGTHS[0]:g} m: {ratio:.2f}x.", ""]
+    for name, run in runs:
+        reported = run["inspection"]["reported"]
+        when = []
+        for dent in DENTS:
+            at = next((r[1] for r in reported if any(abs(a - dent.axial) < 0.1 for a in r[2])),
+                      None)  # fmt: skip
+            when.append(f"{dent.axial:g} m " + ("at close" if at is None else f"at {at:.2f} m"))
+        found = len(run["inspection"]["defects"])
+        lines.append(
+            f"- {name}: the live inspection found {found} defects; each dent reported with "
+            f"the sensor at: {', '.join(when)}."
+        )
+    lines += [""] + reproduce_lines(command, machine)[6:]
+    return "\n".join(lines)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--replay", type=float, help=argparse.SUPPRESS)
@@ -374,10 +457,20 @@ def main() -> None:
     parser.add_argument("--preview", type=float, default=0.0, help=argparse.SUPPRESS)
     parser.add_argument("--live-mesh", type=Path, help=argparse.SUPPRESS)
     parser.add_argument("--reach", type=float, help=argparse.SUPPRESS)
+    parser.add_argument("--pace", type=float, default=0.0, help=argparse.SUPPRESS)
+    parser.add_argument("--background", action="store_true", help=argparse.SUPPRESS)
+    parser.add_argument(
+        "--robot", action="store_true", help="replay at the robot's pace, in the background"
+    )
     parser.add_argument("--output", type=Path, default=DEFAULT_OUTPUT)
     args = parser.parse_args()
     if args.replay is not None:
-        return replay(args.replay, args.json, args.like, args.preview, args.reach)
+        return replay(
+            args.replay, args.json, args.like, args.preview, args.reach, args.pace,
+            args.background,
+        )  # fmt: skip
+    if args.robot:
+        return robot(args.output)
     if args.batch is not None:
         return batch(args.batch, args.json, args.live_mesh)
     with tempfile.TemporaryDirectory() as folder:

@@ -19,7 +19,7 @@ from zeroset import io as zio
 from zeroset.cli import main
 from zeroset.errors import InputError, SurfaceWarning
 from zeroset.evaluate import closest_points_on_mesh
-from zeroset.live import LiveReconstruction
+from zeroset.live import QUEUE, LiveReconstruction
 from zeroset.scans import follow, split_scans
 from zeroset.synthetic import Defect, PipePath, scan_pipe_run
 from zeroset.tile_output import MANIFEST, read_tile_meshes
@@ -124,6 +124,75 @@ def test_work_left_by_the_budget_waits_and_gives_the_same_blocks(scans, live_run
     assert sorted(later) == sorted(blocks)
     for index, mesh in blocks.items():
         assert_same_mesh(mesh, later[index])
+
+
+@pytest.mark.slow
+def test_in_the_background_the_blocks_are_those_made_without_it(scans, live_run):
+    _, blocks, _ = live_run
+    live = LiveReconstruction(reach=RANGE, block_cubes=BLOCK_CUBES, background=True)
+    behind, done = {}, []
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", SurfaceWarning)
+        for points, viewpoints in scans:
+            update = live.add(points, viewpoints)
+            assert update.skipped is None and update.points == points.shape[0]
+            behind.update(update.finished)
+            done += update.done
+        closing = live.close()
+    behind.update(closing.finished)
+    done += closing.done
+    assert [k for k, _ in done] == list(range(len(scans)))  # each scan's work ends once
+    assert all(seconds > 0.0 for _, seconds in done)
+    assert sorted(behind) == sorted(blocks)
+    for index, mesh in blocks.items():
+        assert_same_mesh(mesh, behind[index])
+    assert live.summary()["scans"] == len(scans) and live.waiting() == 0
+
+
+def _held_worker(monkeypatch):
+    """Hold the background worker at each scan until the event returned is set."""
+    release = threading.Event()
+    take = LiveReconstruction._take
+
+    def held(self, scan, deadline):
+        assert release.wait(60), "the test never released the worker"
+        return take(self, scan, deadline)
+
+    monkeypatch.setattr(LiveReconstruction, "_take", held)
+    return release
+
+
+def test_in_the_background_add_waits_only_once_the_queue_is_full(scans, monkeypatch):
+    release = _held_worker(monkeypatch)
+    live = LiveReconstruction(rho_delta=0.03, cube_size=0.045, reach=RANGE, background=True)
+    # The worker holds the first scan; QUEUE more wait for it, and add returned each time.
+    for points, viewpoints in scans[: QUEUE + 1]:
+        assert live.add(points, viewpoints).done == ()
+    blocked = threading.Thread(target=live.add, args=scans[QUEUE + 1], daemon=True)
+    blocked.start()
+    blocked.join(0.5)
+    assert blocked.is_alive()  # waiting for the worker to take a scan
+    release.set()
+    blocked.join(60)
+    assert not blocked.is_alive()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", SurfaceWarning)
+        closing = live.close()
+    assert [k for k, _ in closing.done][-1] == QUEUE + 1  # close waited for every scan
+    assert live.summary()["scans"] == QUEUE + 2 and live.waiting() == 0
+
+
+def test_an_error_of_the_worker_is_raised_by_the_next_call(scans, monkeypatch):
+    def fails(self, scan, deadline):
+        raise RuntimeError(f"scan {scan.number} failed")
+
+    monkeypatch.setattr(LiveReconstruction, "_take", fails)
+    live = LiveReconstruction(rho_delta=0.03, cube_size=0.045, reach=RANGE, background=True)
+    live.add(*scans[0])
+    with pytest.raises(RuntimeError, match="scan 0 failed"):
+        live.close()
+    with pytest.raises(InputError, match="closed"):
+        live.add(*scans[1])
 
 
 @pytest.mark.slow

@@ -19,6 +19,12 @@ goes through three states:
   each atomically) and its points and pieces are dropped once its neighbours no longer
   need them, so memory follows a window along the robot's path.
 
+With ``background``, `LiveReconstruction.add` only checks its scan and queues it: a worker
+thread takes the scans in order and does what `add` does without it, the same work in the
+same order, so that the robot's loop does not wait for the blocks (the kernels release the
+GIL). Once ``QUEUE`` scans wait, `add` waits for the worker to take one: the scans held,
+and so the memory, stay bounded where the work falls behind the scans.
+
 Blocks that no scan has sealed yet are previewed: those the newest scan put points into
 within ``preview`` of its sensor are fitted and contoured from the points so far.
 
@@ -28,6 +34,8 @@ points go to it, and it inspects the pipe in windows as the finished front moves
 
 from __future__ import annotations
 
+import queue
+import threading
 import time
 import warnings
 from dataclasses import dataclass, field, replace
@@ -82,7 +90,7 @@ from .tiles import (
 from .topology import boundary_edges
 from .types import Mesh, Parameters
 
-__all__ = ["BLOCK_CUBES", "BUDGET", "LiveReconstruction", "ScanUpdate"]
+__all__ = ["BLOCK_CUBES", "BUDGET", "QUEUE", "LiveReconstruction", "ScanUpdate"]
 
 #: Cubes along each edge of a block. A block's box reads a halo of about 13 cubes on
 #: every side (the jets' reach, 16 rho+delta, at cubes of 1.5 rho+delta, and
@@ -99,6 +107,11 @@ SEAM_MATCH = 1e-2
 #: Seconds of block work an `add` does by default (``budget``): a scan's blocks then
 #: spread over the scans that follow, as long as the scans leave the time.
 BUDGET = 1.0
+#: Scans a ``background`` run holds for its worker before `add` waits: one scan's work
+#: may then run past the time between scans (a block's contour takes up to about 7 s on
+#: the benchmark run) without holding the robot, while the memory of scans held stays a
+#: few scans'.
+QUEUE = 2
 #: Relative change of rho+delta or of the noise at which a finished block's own points
 #: would have chosen differently from the held parameters; the report says so.
 PARAMETER_DRIFT = 0.25
@@ -129,6 +142,13 @@ class ScanUpdate:
         Blocks sealed but not yet finished after it (`LiveReconstruction.budget`).
     inspected : tuple of zeroset.inspect.Stretch
         The stretches of the pipe its live inspection reported.
+    done : tuple of (int, float)
+        ``(scan, seconds)`` for each scan whose work ended since the previous call: the
+        seconds from its `add` being called to then. Without ``background``, this scan.
+
+    With ``background``, `late_points`, `finished`, `previewed`, `inspected` and `waiting`
+    are what the worker did since the previous call, for this scan or earlier ones, and
+    `points` counts the scan's usable points before any late ones are known.
     """
 
     scan: int
@@ -140,6 +160,33 @@ class ScanUpdate:
     seconds: float
     waiting: int = 0
     inspected: tuple = ()
+    done: tuple = ()
+
+
+@dataclass(frozen=True, eq=False)
+class _Scan:
+    """One scan as `add` checked it: points (N, 3), sensors (N, 3), ranges (N,), input
+    frame, and the `time.perf_counter` at which `add` was called."""
+
+    number: int
+    points: np.ndarray
+    viewpoints: np.ndarray
+    ranges: np.ndarray
+    given: float
+
+
+def _merged(updates: list, waiting: int = 0) -> ScanUpdate:
+    """One `ScanUpdate` of what `updates` changed, in order (later meshes replace earlier
+    ones; `waiting` is the last's, or the one given where there is none)."""
+    merged = ScanUpdate(-1, 0, None, 0, {}, {}, 0.0, waiting)
+    for u in updates:
+        merged = replace(
+            merged, late_points=merged.late_points + u.late_points,
+            finished=merged.finished | u.finished, previewed=merged.previewed | u.previewed,
+            waiting=u.waiting, inspected=merged.inspected + u.inspected,
+            done=merged.done + u.done,
+        )  # fmt: skip
+    return merged
 
 
 @dataclass(eq=False)
@@ -202,6 +249,11 @@ class LiveReconstruction:
         has taken its scan: it stops at the first block or window done past them, and what
         is left waits for the next scans (`close` does it all; `waiting` counts the
         blocks). ``inf`` does all that can be done at once.
+    background : bool
+        Do each scan's work on a worker thread (module docstring): `add` returns once the
+        scan is checked and queued, and what the worker did comes with the next calls
+        (`ScanUpdate`); `close` waits for it. An error of the worker is raised by the next
+        `add` or `close`. The mesh is the one made without it.
     inspection : zeroset.inspect.LiveInspection, optional
         Inspect the pipe as its blocks finish: each finished block's mesh and points go
         to it, and it is told how far along the sensors' path every block is finished.
@@ -220,6 +272,7 @@ class LiveReconstruction:
         preview: float = 0.0,
         budget: float = BUDGET,
         inspection=None,
+        background: bool = False,
         **overrides,
     ) -> None:
         config = (config or ReconstructionConfig()).with_overrides(**overrides)
@@ -243,11 +296,19 @@ class LiveReconstruction:
         self.preview = float(preview)
         self.budget = float(budget)
         self.inspection = inspection
+        self.background = bool(background)
         self._origin = None if origin is None else as_points(np.reshape(origin, (1, 3)))[0]
         self._origin_given = origin is not None
         self._given_reach, self._max_jump = reach, max_jump
-        self._range = 0.0  # the longest range seen so far
-        self._sensor: np.ndarray | None = None  # the newest scan's, local frame
+        self._range = 0.0  # the longest range of the scans taken so far
+        self._sensor: np.ndarray | None = None  # the newest scan's taken, local frame
+        self._given: tuple = (None, 0.0)  # the newest scan's sensor given, and longest range
+        self._queue: queue.Queue | None = None  # scans for the worker, with `background`
+        self._worker: threading.Thread | None = None
+        self._outbox: list = []  # what the worker did since the last call: `_Taken`s
+        self._outbox_lock = threading.Lock()
+        self._failure: BaseException | None = None  # the worker's error
+        self._waited = 0  # blocks waiting after the last scan the worker took
         self._raw: list = []  # scans held until the parameters are measured
         self._blocks: dict = {}
         self._tolerance: float | None = None
@@ -293,61 +354,125 @@ class LiveReconstruction:
         previous scan's, is left out whole with a `SurfaceWarning` saying why."""
         if self._closed:
             raise InputError("this live reconstruction is closed; start a new one")
+        self._raise_failure()
         start = time.perf_counter()
         number = self._scans
         self._scans += 1
         self.stats["scans"] += 1
         points, viewpoints, problem = self._checked(points, viewpoint)
         if problem is None:
-            sensor = viewpoints.mean(axis=0) - (self._origin if self._origin is not None else 0)
-            problem = self._jump(sensor)
+            problem = self._jump(viewpoints.mean(axis=0))
         if problem is not None:
             self.stats["scans_skipped"] += 1
             self.skipped.append((number, problem))
             warnings.warn(f"scan {number} skipped: {problem}", SurfaceWarning, stacklevel=2)
             return ScanUpdate(number, 0, problem, 0, {}, {}, time.perf_counter() - start)
+        ranges = np.linalg.norm(points - viewpoints, axis=1)
+        self._given = (viewpoints.mean(axis=0), max(self._given[1], float(ranges.max())))
+        scan = _Scan(number, points, viewpoints, ranges, start)
+        if self.background:
+            self._put(scan)
+            taken = self._collect()
+        else:
+            taken = [self._take(scan, deadline=start + self.budget)]
+        seconds = time.perf_counter() - start
+        self.timings.setdefault("scans", []).append(seconds)
+        update = _merged(taken, self._waited)
+        self._waited = update.waiting
+        used = points.shape[0] - (0 if self.background else update.late_points)
+        return replace(update, scan=number, points=used, seconds=seconds)
+
+    def _take(self, scan: _Scan, deadline: float) -> ScanUpdate:
+        """Bin scan `scan` (once the parameters are known) and do the block work it allows
+        until `deadline`; what that changed, with the scan's own seconds in ``done``."""
         if self._origin is None:
-            self._origin = viewpoints.mean(axis=0)
+            self._origin = scan.viewpoints.mean(axis=0)
             if self.parameters is not None:
                 self._sensor = np.zeros(3)
                 self._place_lattice()
-        local, local_viewpoints = points - self._origin, viewpoints - self._origin
+        local, local_viewpoints = scan.points - self._origin, scan.viewpoints - self._origin
         self._sensor = local_viewpoints.mean(axis=0)
-        ranges = np.linalg.norm(local - local_viewpoints, axis=1)
-        self._range = max(self._range, float(ranges.max()))
+        self._range = max(self._range, float(scan.ranges.max()))
         if self.inspection is not None:
-            self.inspection.scan(self._sensor + self._origin, ranges)
+            self.inspection.scan(self._sensor + self._origin, scan.ranges)
         late = 0
         if self.parameters is None:
-            self._raw.append((points, viewpoints))
+            self._raw.append((scan.points, scan.viewpoints))
             self._measure_parameters()
         else:
             late = self._bin(local, local_viewpoints)
-        finished, inspected = self._advance(final=False, deadline=start + self.budget)
+        finished, inspected = self._advance(final=False, deadline=deadline)
         previewed = self._previews(local) if self.preview > 0.0 else {}
         if late:
             self.stats["late_points"] += late
             warnings.warn(
-                f"scan {number}: {late} point(s) fell into blocks already sealed and are left "
-                f"out; give a reach of at least {self._range:.4g}",
+                f"scan {scan.number}: {late} point(s) fell into blocks already sealed and "
+                f"are left out; give a reach of at least {self._range:.4g}",
                 SurfaceWarning,
-                stacklevel=2,
+                stacklevel=3,
             )
-        seconds = time.perf_counter() - start
-        self.timings.setdefault("scans", []).append(seconds)
-        used = points.shape[0] - late
-        return ScanUpdate(
-            number, used, None, late, finished, previewed, seconds, self.waiting(), inspected
-        )
+        done = ((scan.number, time.perf_counter() - scan.given),)
+        return ScanUpdate(scan.number, 0, None, late, finished, previewed, 0.0,
+                          self.waiting(), tuple(inspected), done)  # fmt: skip
+
+    # ------------------------------------------------------------- the background worker
+
+    def _put(self, scan: _Scan | None) -> None:
+        """Queue `scan` for the worker (started by the first), waiting while ``QUEUE``
+        scans wait; the worker's error, if it stopped with one."""
+        if self._worker is None:
+            self._queue = queue.Queue(maxsize=QUEUE)
+            self._worker = threading.Thread(target=self._work, name="zeroset-live", daemon=True)
+            self._worker.start()
+        while True:
+            self._raise_failure()
+            try:
+                self._queue.put(scan, timeout=0.1)
+                return
+            except queue.Full:
+                continue
+
+    def _work(self) -> None:
+        """The worker: take the queued scans in order until `close` queues None."""
+        try:
+            while (scan := self._queue.get()) is not None:
+                update = self._take(scan, deadline=time.perf_counter() + self.budget)
+                with self._outbox_lock:
+                    self._outbox.append(update)
+        except BaseException as error:  # raised in the caller's thread by `add` or `close`
+            self._failure = error
+
+    def _collect(self) -> list:
+        """What the worker did since the last call (`ScanUpdate`s), emptied."""
+        with self._outbox_lock:
+            taken, self._outbox = self._outbox, []
+        return taken
+
+    def _raise_failure(self) -> None:
+        if self._failure is not None:
+            self._closed = True
+            raise self._failure
+
+    def _join(self) -> None:
+        """Wait for the worker to take every scan queued, and stop it."""
+        if self._worker is None:
+            return
+        self._put(None)
+        self._worker.join()
+        self._worker = None
+        self._raise_failure()
 
     def close(self) -> ScanUpdate:
         """Finish every block left (no more scans come) and return what that changed."""
         start = time.perf_counter()
         if not self._closed:
+            self._join()
             self._closed = True
+            taken = self._collect()
             if self.parameters is None and self._raw:
                 self._measure_parameters(final=True)
             finished, inspected = self._advance(final=True)
+            taken.append(ScanUpdate(-1, 0, None, 0, finished, {}, 0.0, 0, tuple(inspected)))
             if self.inspection is not None:
                 self.inspection.close()
             stats = self.summary()
@@ -379,9 +504,9 @@ class LiveReconstruction:
                     stacklevel=2,
                 )
         else:
-            finished, inspected = {}, []
+            taken = []
         seconds = time.perf_counter() - start
-        return ScanUpdate(-1, 0, None, 0, finished, {}, seconds, 0, tuple(inspected))
+        return replace(_merged(taken), scan=-1, points=0, seconds=seconds, waiting=0)
 
     def mesh(self) -> Mesh:
         """The whole current mesh, input coordinates: the finished blocks welded (read back
@@ -390,10 +515,12 @@ class LiveReconstruction:
         if self.folder is not None and self._entries:
             parts.append(read_tile_meshes(self.folder))
         elif self._meshes:
-            parts.append(weld_coincident([self._meshes[b] for b in sorted(self._meshes)])[0])
+            meshes = dict(self._meshes)
+            parts.append(weld_coincident([meshes[b] for b in sorted(meshes)])[0])
             parts[0] = parts[0].translated(self._origin)
-        pieces = [b.piece for b in self._blocks.values() if b.contoured and not b.finished]
-        pieces = [p for p in pieces if p.faces.shape[0]]
+        blocks = list(self._blocks.values())  # a worker may be adding to them
+        pieces = [b.piece for b in blocks if b.contoured and not b.finished]
+        pieces = [p for p in pieces if p is not None and p.faces.shape[0]]
         if pieces:
             parts.append(weld_pieces(pieces)[0].translated(self._origin))
         if not parts:
@@ -445,11 +572,12 @@ class LiveReconstruction:
         return points[usable], np.ascontiguousarray(viewpoints[usable]), None
 
     def _jump(self, sensor: np.ndarray) -> str | None:
-        """Why a scan whose sensor is at `sensor` (local frame) does not belong, or None."""
-        if self._sensor is None:
+        """Why a scan whose sensor is at `sensor` (3,) does not belong, or None."""
+        previous, longest = self._given
+        if previous is None:
             return None
-        limit = self._max_jump or self._reach()
-        away = float(np.linalg.norm(sensor - self._sensor))
+        limit = self._max_jump or self._given_reach or longest
+        away = float(np.linalg.norm(sensor - previous))
         if limit > 0.0 and away > limit:
             return (
                 f"its sensor lies {away:.4g} from the previous scan's, farther than "
@@ -635,7 +763,7 @@ class LiveReconstruction:
 
     def waiting(self) -> int:
         """Blocks sealed but not yet finished: the work the scans' budgets left."""
-        return sum(b.sealed and not b.finished for b in self._blocks.values())
+        return sum(b.sealed and not b.finished for b in list(self._blocks.values()))
 
     def _neighbours(self, index, reach: int = 1):
         """Indices of the blocks within `reach` blocks of `index` on every axis."""
