@@ -20,10 +20,11 @@ goes through three states:
   need them, so memory follows a window along the robot's path.
 
 With ``background``, `LiveReconstruction.add` only checks its scan and queues it: a worker
-thread takes the scans in order and does what `add` does without it, the same work in the
-same order, so that the robot's loop does not wait for the blocks (the kernels release the
-GIL). Once ``QUEUE`` scans wait, `add` waits for the worker to take one: the scans held,
-and so the memory, stay bounded where the work falls behind the scans.
+thread takes the scans in order and does for each what `add` does without it, and while no
+scan waits goes on with the work their budgets left; the blocks are the ones made without
+it, and the robot's loop does not wait for them (the kernels release the GIL). Once
+``QUEUE`` scans wait, `add` waits for the worker to take one: the scans held, and so the
+memory, stay bounded where the work falls behind the scans.
 
 Blocks that no scan has sealed yet are previewed: those the newest scan put points into
 within ``preview`` of its sensor are fitted and contoured from the points so far.
@@ -250,8 +251,9 @@ class LiveReconstruction:
         is left waits for the next scans (`close` does it all; `waiting` counts the
         blocks). ``inf`` does all that can be done at once.
     background : bool
-        Do each scan's work on a worker thread (module docstring): `add` returns once the
-        scan is checked and queued, and what the worker did comes with the next calls
+        Do each scan's work on a worker thread (module docstring), which goes on with the
+        work the budgets left while no scan waits: `add` returns once the scan is checked
+        and queued, and what the worker did comes with the next calls
         (`ScanUpdate`); `close` waits for it. An error of the worker is raised by the next
         `add` or `close`. The mesh is the one made without it.
     inspection : zeroset.inspect.LiveInspection, optional
@@ -309,6 +311,7 @@ class LiveReconstruction:
         self._outbox_lock = threading.Lock()
         self._failure: BaseException | None = None  # the worker's error
         self._waited = 0  # blocks waiting after the last scan the worker took
+        self._steps = 0  # blocks contoured or finished so far
         self._raw: list = []  # scans held until the parameters are measured
         self._blocks: dict = {}
         self._tolerance: float | None = None
@@ -433,14 +436,26 @@ class LiveReconstruction:
                 continue
 
     def _work(self) -> None:
-        """The worker: take the queued scans in order until `close` queues None."""
+        """The worker: take the queued scans in order until `close` queues None, and while
+        none waits, go on with the block work and windows their budgets left."""
         try:
             while (scan := self._queue.get()) is not None:
-                update = self._take(scan, deadline=time.perf_counter() + self.budget)
-                with self._outbox_lock:
-                    self._outbox.append(update)
+                self._post(self._take(scan, deadline=time.perf_counter() + self.budget))
+                while self._queue.empty():
+                    steps = self._steps
+                    finished, inspected = self._advance(
+                        final=False, deadline=time.perf_counter() + self.budget
+                    )
+                    if self._steps == steps and not inspected:
+                        break  # nothing left that the scans so far allow
+                    self._post(ScanUpdate(-1, 0, None, 0, finished, {}, 0.0, self.waiting(),
+                                          tuple(inspected)))  # fmt: skip
         except BaseException as error:  # raised in the caller's thread by `add` or `close`
             self._failure = error
+
+    def _post(self, update: ScanUpdate) -> None:
+        with self._outbox_lock:
+            self._outbox.append(update)
 
     def _collect(self) -> list:
         """What the worker did since the last call (`ScanUpdate`s), emptied."""
@@ -707,6 +722,7 @@ class LiveReconstruction:
             if step is None:
                 break
             kind, index = step
+            self._steps += 1
             if kind == "contour":
                 self._contour(index)
             else:
