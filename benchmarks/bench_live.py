@@ -325,6 +325,18 @@ def report(
     return "\n".join(lines)
 
 
+def _cell(found) -> str:
+    """A defect [axial, clock, depth] as "axial, clock, depth in mm", or "not found"."""
+    return "not found" if found is None else (
+        f"{found[0]:.3f}, {found[1]:.0f}, {-1e3 * found[2]:.2f}"
+    )  # fmt: skip
+
+
+def _elsewhere(found) -> list:
+    """The defects of `found` ([axial, clock, depth]) farther than 0.1 m from every dent."""
+    return [f for f in found or [] if all(abs(f[0] - d.axial) >= 0.1 for d in DENTS)]
+
+
 def inspection_lines(run: dict, batch_run: dict, ranged: dict) -> list[str]:
     """The live inspections against the truth and the final inspections, as markdown."""
     lines = []
@@ -355,11 +367,6 @@ def inspection_lines(run: dict, batch_run: dict, ranged: dict) -> list[str]:
         near = [f for f in found or [] if abs(f[0] - dent.axial) < 0.1]
         return min(near, key=lambda f: abs(f[0] - dent.axial)) if near else None
 
-    def cell(found):
-        return "not found" if found is None else (
-            f"{found[0]:.3f}, {found[1]:.0f}, {-1e3 * found[2]:.2f}"
-        )  # fmt: skip
-
     def when(one, dent):
         reported = one["inspection"]["reported"]
         at = next((r[1] for r in reported if nearest([[a, 0, 0] for a in r[2]], dent)), None)
@@ -368,18 +375,18 @@ def inspection_lines(run: dict, batch_run: dict, ranged: dict) -> list[str]:
     for k, dent in enumerate(DENTS, start=1):
         lines.append(
             f"| {k} | {dent.axial:.3f}, {dent.clock:.0f}, {1e3 * dent.depth:.2f} | "
-            f"{cell(nearest(run['inspection']['defects'], dent))} | {when(run, dent)} | "
-            f"{cell(nearest(ranged['inspection']['defects'], dent))} | {when(ranged, dent)} | "
-            f"{cell(nearest(batch_run['live_defects'], dent))} | "
-            f"{cell(nearest(batch_run['defects'], dent))} |"
+            f"{_cell(nearest(run['inspection']['defects'], dent))} | {when(run, dent)} | "
+            f"{_cell(nearest(ranged['inspection']['defects'], dent))} | {when(ranged, dent)} | "
+            f"{_cell(nearest(batch_run['live_defects'], dent))} | "
+            f"{_cell(nearest(batch_run['defects'], dent))} |"
         )
     others = []
     for name, found in (("live", run["inspection"]["defects"]),
                         (f"live, range {RANGE:g} m", ranged["inspection"]["defects"]),
                         ("final, live mesh", batch_run["live_defects"]),
                         ("final, batch mesh", batch_run["defects"])):  # fmt: skip
-        false = [f for f in found if all(abs(f[0] - d.axial) >= 0.1 for d in DENTS)]
-        where = f" ({'; '.join(map(cell, false))})" if false else ""
+        false = _elsewhere(found)
+        where = f" ({'; '.join(map(_cell, false))})" if false else ""
         others.append(f"{name} {len(false)}{where}")
     lines += [
         "",
@@ -390,10 +397,12 @@ def inspection_lines(run: dict, batch_run: dict, ranged: dict) -> list[str]:
     return lines
 
 
-def robot(output: Path) -> None:
-    """The ``--robot`` runs and their section."""
-    with tempfile.TemporaryDirectory() as folder:
-        folder = Path(folder)
+def robot(output: Path, keep: Path | None = None) -> None:
+    """The ``--robot`` runs and their section; with `keep`, the runs' figures and meshes
+    are left in that folder."""
+    with tempfile.TemporaryDirectory() as temporary:
+        folder = Path(temporary) if keep is None else keep
+        folder.mkdir(parents=True, exist_ok=True)
         paced = ("--pace", f"{STATION_SECONDS:g}", "--background")
         runs = [(f"{length:g} m, a scan every {STATION_SECONDS:g} s", _child(
             "replay", length, folder, *paced)) for length in LENGTHS]  # fmt: skip
@@ -439,10 +448,18 @@ def robot_report(runs, machine: dict, command: str) -> str:
             at = next((r[1] for r in reported if any(abs(a - dent.axial) < 0.1 for a in r[2])),
                       None)  # fmt: skip
             when.append(f"{dent.axial:g} m " + ("at close" if at is None else f"at {at:.2f} m"))
-        found = len(run["inspection"]["defects"])
+        found = run["inspection"]["defects"]
+        near = [f for f in found if f not in _elsewhere(found)]
+        false = "; ".join(map(_cell, _elsewhere(found))) or "none"
+        twice = [f"{d.axial:g} m ({n})" for d in DENTS
+                 if (n := sum(abs(f[0] - d.axial) < 0.1 for f in found)) > 1]  # fmt: skip
+        if twice:
+            false += "; dents found more than once: " + ", ".join(twice)
         lines.append(
-            f"- {name}: the live inspection found {found} defects; each dent reported with "
-            f"the sensor at: {', '.join(when)}."
+            f"- {name}: the live inspection found {len(found)} defects, {len(near)} within "
+            f"0.1 m of a dent ({'; '.join(map(_cell, near))}); each dent reported with the "
+            f"sensor at: {', '.join(when)}; defects where there is none (axial m, clock "
+            f"degrees, depth mm): {false}."
         )
     lines += [""] + reproduce_lines(command, machine)[6:]
     return "\n".join(lines)
@@ -462,6 +479,10 @@ def main() -> None:
     parser.add_argument(
         "--robot", action="store_true", help="replay at the robot's pace, in the background"
     )
+    parser.add_argument(
+        "--keep", type=Path, metavar="DIR", help="with --robot: leave the runs' figures and "
+        "meshes in DIR"
+    )  # fmt: skip
     parser.add_argument("--output", type=Path, default=DEFAULT_OUTPUT)
     args = parser.parse_args()
     if args.replay is not None:
@@ -470,7 +491,7 @@ def main() -> None:
             args.background,
         )  # fmt: skip
     if args.robot:
-        return robot(args.output)
+        return robot(args.output, args.keep)
     if args.batch is not None:
         return batch(args.batch, args.json, args.live_mesh)
     with tempfile.TemporaryDirectory() as folder:
