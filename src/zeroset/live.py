@@ -307,7 +307,7 @@ class LiveReconstruction:
         self._given: tuple = (None, 0.0)  # the newest scan's sensor given, and longest range
         self._queue: queue.Queue | None = None  # scans for the worker, with `background`
         self._worker: threading.Thread | None = None
-        self._outbox: list = []  # what the worker did since the last call: `_Taken`s
+        self._outbox: list = []  # what the worker did since the last call: `ScanUpdate`s
         self._outbox_lock = threading.Lock()
         self._failure: BaseException | None = None  # the worker's error
         self._waited = 0  # blocks waiting after the last scan the worker took
@@ -454,6 +454,7 @@ class LiveReconstruction:
             self._failure = error
 
     def _post(self, update: ScanUpdate) -> None:
+        """Hand `update` to the caller's next `add` or `close`."""
         with self._outbox_lock:
             self._outbox.append(update)
 
@@ -464,6 +465,7 @@ class LiveReconstruction:
         return taken
 
     def _raise_failure(self) -> None:
+        """Raise the worker's error, if it stopped with one, and close the run."""
         if self._failure is not None:
             self._closed = True
             raise self._failure
