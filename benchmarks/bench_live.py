@@ -142,7 +142,7 @@ def replay(
             made += time.perf_counter() - start
             time.sleep(max(0.0, first + k * pace - time.perf_counter()))
             update = live.add(part.points, part.viewpoints)
-            done += [seconds for _, seconds in update.done]
+            done += [t for _, t in update.done]
             seconds.append(update.seconds)
             finished.append(len(update.finished))
             waiting.append(update.waiting)
@@ -151,7 +151,7 @@ def replay(
             points += part.points.shape[0]
             del part
         closing = live.close()
-        done += [seconds for _, seconds in closing.done]
+        done += [t for _, t in closing.done]
     mesh = live.mesh()
     np.savez(out.with_suffix(".npz"), vertices=mesh.vertices, faces=mesh.faces)
     out.write_text(json.dumps({
