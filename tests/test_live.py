@@ -238,9 +238,10 @@ def test_on_the_batch_lattice_the_live_mesh_is_the_batch_mesh(scans):
     assert closest_points_on_mesh(alone.mesh().vertices, batch.mesh)[2].max() > 1e-6
 
 
-def test_bad_scans_are_reported_and_skipped(scans):
+@pytest.mark.parametrize("background", [False, True])
+def test_bad_scans_are_reported_and_skipped(scans, background):
     points, viewpoints = scans[0]
-    live = LiveReconstruction(rho_delta=0.03, cube_size=0.045, reach=RANGE)
+    live = LiveReconstruction(rho_delta=0.03, cube_size=0.045, reach=RANGE, background=background)
     with pytest.warns(SurfaceWarning, match="scan 0 skipped: no usable points"):
         update = live.add(np.full((100, 3), np.nan), np.zeros(3))
     assert update.skipped is not None and update.points == 0
