@@ -10,8 +10,10 @@ import pytest
 from tests.test_live import BLOCK_CUBES, RADIUS, RANGE, _scans
 from zeroset.errors import InputError, SurfaceWarning
 from zeroset.inspect import LIVE_FILES, LiveInspection, Stretch, inspect_pipe
-from zeroset.inspect._live import MARGIN, _no_stations
+from zeroset.inspect._defects import Defect as Found
+from zeroset.inspect._live import MARGIN, _no_stations, _same_region
 from zeroset.live import LiveReconstruction
+from zeroset.repair import keep_faces
 from zeroset.synthetic import Defect, PipePath, scan_pipe_run
 
 LENGTH = 6.0
@@ -162,3 +164,105 @@ def test_12_oclock_is_carried_up_a_bend_into_a_vertical_leg():
     (batch,) = inspect_pipe(live.mesh(), points, viewpoints=viewpoints).defects.defects
     assert abs(found.clock - batch.clock) < 5.0 and abs(found.clock - dent.clock) < 5.0
     assert abs(found.axial - dent.axial) < 0.03
+
+
+def _arc_to_nearest(x, nodes):
+    """(M,) arc length along the polyline `nodes` (S, 3) of its nearest point to each of
+    `x` (M, 3), over every segment (the reference for `LiveInspection.position`)."""
+    a, b = nodes[:-1], nodes[1:]
+    length = np.linalg.norm(b - a, axis=1)
+    t = np.clip(np.einsum("msk,sk->ms", x[:, None] - a, b - a) / length**2, 0.0, 1.0)
+    gap = np.linalg.norm(x[:, None] - a - t[..., None] * (b - a), axis=2)
+    j = np.argmin(gap, axis=1)
+    return np.r_[0.0, np.cumsum(length)][j] + t[np.arange(j.size), j] * length[j]
+
+
+def test_a_window_is_cut_square_at_the_front(monkeypatch):
+    """Blocks are boxes: across a bend a window of whole blocks ends obliquely, past the
+    front on one side of the pipe and short of it on the other, and there the centreline
+    and the wall map go wrong. The points and faces a window inspects end at the front
+    (by the path position of their nearest path point), and reach it."""
+    path = PipePath.build([("straight", 1.5), ("bend", 0.6, 90.0, 0.0), ("straight", 1.5)])
+    inspection = LiveInspection(nominal_diameter=2 * RADIUS, step=0.5)  # windows in RADIUS
+    scans = []
+    for k, station in enumerate(np.arange(0.25, path.length, 0.5)):
+        scan = scan_pipe_run(path, radius=RADIUS, stations=[station], rotation_step=8.0,
+                             rng=k)  # fmt: skip
+        near = np.linalg.norm(scan.points - scan.viewpoints, axis=1) <= RANGE
+        points, sensors = scan.points[near], scan.viewpoints[near]
+        scans.append((points, sensors))
+        inspection.scan(scan.viewpoints.mean(axis=0), np.linalg.norm(points - sensors, axis=1))
+    nodes = inspection.path
+    points, viewpoints = (np.concatenate(part) for part in zip(*scans, strict=True))
+    truth = scan.truth_mesh()
+    size = 0.5
+    block = np.floor(points / size).astype(np.int64)
+    face_block = np.floor(truth.vertices[truth.faces].mean(axis=1) / size).astype(np.int64)
+    for index in np.unique(block, axis=0):
+        here = (block == index).all(axis=1)
+        faces = (face_block == index).all(axis=1)
+        mesh = keep_faces(truth, faces) if faces.any() else None
+        inspection.block(tuple(index), mesh, points[here], viewpoints[here],
+                         (index + 0.5) * size, size)  # fmt: skip
+    seen = []
+
+    def spy(mesh, points, **options):
+        seen.append((mesh, points))
+        return inspect_pipe(mesh, points, **options)
+
+    monkeypatch.setattr("zeroset.inspect._live.inspect_pipe", spy)
+    arc = _arc_to_nearest(nodes, nodes)
+    bend = 1.5 + 0.5 * np.pi * 0.6  # the bend's end on the path
+    fronts = (bend - 0.2, arc[-1] - 0.3)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", SurfaceWarning)
+        for front in fronts:
+            (stretch,) = inspection.advance(front)
+            assert stretch.defects == ()  # the wall is clean
+    for (mesh, window), front in zip(seen, fronts, strict=True):
+        for x in (window, mesh.vertices):
+            along = _arc_to_nearest(x, nodes)
+            assert along.max() <= front + 0.01  # within a sample's spacing of the front
+            assert along.max() > front - 0.05  # and the data reach it
+
+
+def _found(kind, axial, clock, extent=(0.05, 20.0)):
+    """A found defect at `axial` (m) and `clock` (degrees), `extent` long and wide."""
+    (length, width) = extent
+    return Found(kind, axial, clock, -0.005, 0.0005, axial - length / 2, axial + length / 2,
+                 (clock - width / 2) % 360, (clock + width / 2) % 360, 0.01, 1e-4)  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    "other, same",
+    [
+        (_found("dent", 6.63, 270.0), True),  # the same dent placed 3 cm on by the next window
+        (_found("dent", 6.70, 270.0), False),  # its own region, just past
+        (_found("dent", 6.60, 90.0), False),  # across the pipe
+        (_found("bulge", 6.60, 270.0), False),
+        (_found("dent", 6.62, 262.0, (0.02, 2.0)), True),  # inside it
+    ],
+)
+def test_a_region_two_windows_see_is_one_defect(other, same):
+    dent = _found("dent", 6.60, 270.0)
+    assert _same_region(dent, other) is same and _same_region(other, dent) is same
+
+
+def test_regions_overlap_across_12_oclock():
+    assert _same_region(_found("dent", 1.0, 355.0), _found("dent", 1.0, 8.0))
+    assert not _same_region(_found("dent", 1.0, 340.0), _found("dent", 1.0, 20.0))
+
+
+def test_path_positions_near_a_bent_path_are_those_of_the_nearest_path_point():
+    rng = np.random.default_rng(3)
+    turn = np.linspace(0.0, 0.5 * np.pi, 8)  # a bend of 0.6 m radius between two legs
+    nodes = np.r_[[[x, 0.0, 0.0] for x in np.arange(-2.0, 0.0, 0.5)],
+                  np.c_[0.6 * np.sin(turn), 0.6 - 0.6 * np.cos(turn), 0 * turn],
+                  [[0.6, 0.6 + y, 0.0] for y in np.arange(0.5, 2.0, 0.5)]]  # fmt: skip
+    inspection = LiveInspection(nominal_diameter=2 * RADIUS)
+    for node in nodes:
+        inspection.scan(node, np.array([RADIUS]))
+    near = nodes[rng.integers(0, len(nodes), 5000)] + rng.normal(0.0, RADIUS, (5000, 3))
+    error = np.abs(inspection.position(near) - _arc_to_nearest(near, nodes))
+    assert np.mean(error < 1e-9) > 0.97  # exact where the nearest sample's segment is
+    assert error.max() < 0.05 * RADIUS  # and off by less than a sample's spacing round corners

@@ -7,15 +7,25 @@ finished (the *front*). Each time the front has moved ``step`` past what was rep
 blocks from `MARGIN` radii before the report's end to the front are inspected as one pipe
 (`inspect_pipe`), and what lies between the report's end and `TAIL` radii short of the
 front is reported: its stations, defects, joints, branches and unreliable stretches. The
-window's own ends are ends of the data to the inspection (a one-sided smoothing kernel, the
-centreline's end), so each is reported by the window where it lies inside.
+window's points and faces are cut square at the front (each by the path position of its
+nearest path point): blocks are boxes, and a window of whole blocks ends raggedly and
+obliquely across a bend, where the centreline and the wall map see a wall that is not
+there. The window's own ends are ends of the data to the inspection (a one-sided
+smoothing kernel, the centreline's end), so each is reported by the window where it lies
+inside. A defect is the first window's whose report its region reaches (its deepest point
+before the report's end, its extent past the report's start), unless its region overlaps
+one the last window reported: a region at a junction is seen by both windows, on axial
+scales that differ by the junction's error, and is reported once.
 
 Axial positions run along the whole run: the first window's are the run's (0 where the data
 start, as in `inspect_pipe`); each later window's are shifted so that its report begins where
 the last one ended. 12 o'clock is carried from one window to the next: a window's ``up`` is
-the last window's 12 o'clock at its start. The nominal diameter and the threshold are held:
-given, or the first window's, as the reconstruction holds its parameters; what each later
-window would have chosen is kept, and `LiveInspection.drift` says where it differs.
+the last window's 12 o'clock at its start. Stations lie on each window's own grid: a
+window's first station is the first at least half a station past the last one reported, so
+two stations at a junction lie half to one and a half stations apart. The nominal diameter
+and the threshold are held: given, or the first window's, as the reconstruction holds its
+parameters; what each later window would have chosen is kept, and `LiveInspection.drift`
+says where it differs.
 """
 
 from __future__ import annotations
@@ -27,14 +37,17 @@ from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from .. import io
 from .._validate import as_points
 from ..errors import InputError, SurfaceWarning
 from ..live import PARAMETER_DRIFT
+from ..neighbours import query_workers
+from ..repair import keep_faces
 from ..tile_output import weld_coincident
 from ..types import Mesh
-from ._centreline import Unreliable
+from ._centreline import STATION, Unreliable
 from ._defects import Branch, Defect, smallest_depth
 from ._files import (
     DEFECT_COLUMNS,
@@ -69,8 +82,11 @@ TAIL = 2.0
 #: Steps the finished front may run ahead of the reports before a window is inspected
 #: past the scan's budget (`LiveInspection.behind`): the blocks held stay a window's.
 BEHIND = 2.0
-#: Positions placed on the path at a time (a (CHUNK, scans, 3) array).
-CHUNK = 4096
+#: Radii between the samples of the sensors' path that `LiveInspection.position` finds the
+#: nearest of (a k-d tree) before it projects onto that sample's segment: a point's
+#: position is off by at most about this where its nearest path point lies on another
+#: segment than its nearest sample's (round a corner of the path).
+SAMPLE = 0.05
 #: The files `LiveInspection.write` writes, rewritten as each window is reported.
 LIVE_FILES = ("live-inspection.json", "live-defects.csv", "live-joints.csv", "live-ovality.csv")
 
@@ -154,6 +170,7 @@ class LiveInspection:
         self.stretches: list[Stretch] = []
         self._up = as_points(np.reshape(up, (1, 3)), "up")[0]
         self._nodes: list = []  # the sensor path, input coordinates
+        self._samples = None  # (nodes, spacing, tree, segment of each sample), by `_sampled`
         self._radius: float | None = None  # guessed, then the held nominal radius
         self._blocks: dict = {}  # block -> (path position, mesh, points, viewpoints)
         self._done = -math.inf  # path position the reports reach
@@ -188,22 +205,18 @@ class LiveInspection:
 
     def position(self, x: np.ndarray) -> np.ndarray:
         """(M,) path position (metres along the sensors' path) of the nearest path point to
-        each of `x` (M, 3), `CHUNK` of them at a time."""
+        each of `x` (M, 3): the nearest of the path's samples every `SAMPLE` radii, then the
+        nearest point of that sample's segment."""
         nodes = self.path
         if nodes.shape[0] < 2:
             return np.zeros(x.shape[0])
+        tree, segment = self._sampled()
         a, b = nodes[:-1], nodes[1:]
         length = np.linalg.norm(b - a, axis=1)
         arc = np.r_[0.0, np.cumsum(length)]
-        out = np.empty(x.shape[0])
-        for lo in range(0, x.shape[0], CHUNK):
-            part = x[lo : lo + CHUNK, None] - a[None]  # (m, S, 3)
-            t = np.clip(np.einsum("msk,sk->ms", part, b - a) / np.maximum(length**2, 1e-300), 0, 1)
-            gap = np.linalg.norm(part - t[..., None] * (b - a)[None], axis=2)
-            nearest = np.argmin(gap, axis=1)
-            rows = np.arange(nearest.size)
-            out[lo : lo + CHUNK] = arc[nearest] + t[rows, nearest] * length[nearest]
-        return out
+        j = segment[tree.query(x, workers=query_workers())[1]]
+        t = np.einsum("mk,mk->m", x - a[j], b[j] - a[j]) / np.maximum(length[j] ** 2, 1e-300)
+        return arc[j] + np.clip(t, 0.0, 1.0) * length[j]
 
     def advance(self, front: float, deadline: float = math.inf) -> list[Stretch]:
         """Inspect the windows the finished `front` (path position; ``inf`` once every block
@@ -356,14 +369,19 @@ class LiveInspection:
         meshes = [self._blocks[k][2] for k in chosen if self._blocks[k][2] is not None]
         points = np.concatenate([self._blocks[k][3] for k in chosen])
         viewpoints = np.concatenate([self._blocks[k][4] for k in chosen])
+        before = self._before(points, front)
+        points, viewpoints = points[before], viewpoints[before]
         sensors, inverse = np.unique(viewpoints, axis=0, return_inverse=True)
         along = self.position(sensors)[inverse.ravel()]
         order = np.argsort(along, kind="stable")  # as the robot went
         try:
-            if not meshes:
+            mesh = weld_coincident(meshes)[0] if meshes else None
+            if mesh is not None:
+                mesh = keep_faces(mesh, self._before(mesh.vertices, front)[mesh.faces].all(axis=1))
+            if mesh is None or mesh.n_faces == 0:
                 raise InputError("no surface")
             found = inspect_pipe(
-                weld_coincident(meshes)[0],
+                mesh,
                 points[order],
                 viewpoints=viewpoints[order],
                 nominal_diameter=self.nominal_diameter,
@@ -399,11 +417,16 @@ class LiveInspection:
         def shifted(record, *names):
             return replace(record, **{n: getattr(record, n) + offset for n in names})
 
-        kept = (found.ovality.axial >= a_low) & (found.ovality.axial < a_high)
+        last = () if first else self.stretches[-1].ovality.axial[-1:]
+        lowest = last[0] + 0.5 * STATION * pipe.radius if len(last) else a_low + offset
+        kept = (found.ovality.axial + offset >= lowest) & (found.ovality.axial < a_high)
         ovality = _stations(found.ovality, kept, offset)
+        seen = () if first else self.stretches[-1].defects  # reported once (module docstring)
         defects = sorted(
-            (shifted(d, "axial", "axial_start", "axial_end")
-             for d in found.defects.defects if inside(d.axial)),
+            (d for d in (shifted(d, "axial", "axial_start", "axial_end")
+                         for d in found.defects.defects
+                         if d.axial < a_high and d.axial_end >= a_low)
+             if not any(_same_region(d, e) for e in seen)),
             key=lambda d: d.axial,
         )  # fmt: skip
         unreliable = tuple(
@@ -459,6 +482,28 @@ class LiveInspection:
         axial = float(pipe.locate(point[None])[0][0])
         return axial if math.isfinite(axial) else otherwise
 
+    def _before(self, x: np.ndarray, front: float) -> np.ndarray:
+        """(M,) bool: whether the path position of each of `x` (M, 3) lies at or before
+        `front` (m; ``inf`` for the last window)."""
+        if math.isinf(front):
+            return np.ones(x.shape[0], dtype=bool)
+        return self.position(x) <= front
+
+    def _sampled(self):
+        """A k-d tree of the sensors' path sampled every `SAMPLE` radii, nodes included,
+        and the segment of each sample; built again when the path or the radius changes."""
+        nodes, spacing = self.path, SAMPLE * self._unit()
+        if self._samples is None or self._samples[:2] != (nodes.shape[0], spacing):
+            a, b = nodes[:-1], nodes[1:]
+            pieces = np.maximum(np.ceil(np.linalg.norm(b - a, axis=1) / spacing), 1).astype(int)
+            segment = np.repeat(np.arange(a.shape[0]), pieces)
+            t = np.arange(segment.size) - np.repeat(np.cumsum(pieces) - pieces, pieces)
+            t = t / pieces[segment]
+            samples = np.r_[a[segment] + t[:, None] * (b - a)[segment], nodes[-1:]]
+            segment = np.r_[segment, a.shape[0] - 1]
+            self._samples = (nodes.shape[0], spacing, cKDTree(samples), segment)
+        return self._samples[2:]
+
     def _path_point(self, position: float) -> np.ndarray:
         """(3,) the point of the sensors' path at `position` metres along it."""
         nodes = self.path
@@ -479,6 +524,22 @@ def _stations(found: Ovality, kept: np.ndarray, offset: float) -> Ovality:
     """The stations `kept` (K,) bool of `found`, `offset` metres along."""
     values = [getattr(found, n)[kept] for n in _OVALITY]
     return Ovality(values[0] + offset, *values[1:])
+
+
+def _same_region(d: Defect, e: Defect) -> bool:
+    """Whether defects `d` and `e` (one axial scale) are of one kind and their regions
+    overlap along the pipe and round it: one region seen by two windows."""
+
+    def on_arc(clock, start, end):
+        return (clock - start) % 360.0 <= (end - start) % 360.0
+
+    return (
+        d.kind == e.kind
+        and d.axial_start <= e.axial_end
+        and e.axial_start <= d.axial_end
+        and (on_arc(d.clock_start, e.clock_start, e.clock_end)
+             or on_arc(e.clock_start, d.clock_start, d.clock_end))
+    )  # fmt: skip
 
 
 def _finite(value: float) -> float | None:
