@@ -443,18 +443,26 @@ def robot_report(runs, machine: dict, command: str) -> str:
     lines += ["", f"Peak memory, {LENGTHS[1]:g} m over {LENGTHS[0]:g} m: {ratio:.2f}x.", ""]
     for name, run in runs:
         reported = run["inspection"]["reported"]
+        found = run["inspection"]["defects"]
         when = []
         for dent in DENTS:
             at = next((r[1] for r in reported if any(abs(a - dent.axial) < 0.1 for a in r[2])),
                       None)  # fmt: skip
-            when.append(f"{dent.axial:g} m " + ("at close" if at is None else f"at {at:.2f} m"))
-        found = run["inspection"]["defects"]
+            if at is None:
+                at = "at close" if any(abs(f[0] - dent.axial) < 0.1 for f in found) else "never"
+            else:
+                at = f"at {at:.2f} m"
+            when.append(f"{dent.axial:g} m {at}")
         near = [f for f in found if f not in _elsewhere(found)]
         false = "; ".join(map(_cell, _elsewhere(found))) or "none"
         twice = [f"{d.axial:g} m ({n})" for d in DENTS
                  if (n := sum(abs(f[0] - d.axial) < 0.1 for f in found)) > 1]  # fmt: skip
         if twice:
             false += "; dents found more than once: " + ", ".join(twice)
+        missed = [f"{d.axial:g} m" for d in DENTS
+                  if not any(abs(f[0] - d.axial) < 0.1 for f in found)]  # fmt: skip
+        if missed:
+            false += "; dents not reported: " + ", ".join(missed)
         lines.append(
             f"- {name}: the live inspection found {len(found)} defects, {len(near)} within "
             f"0.1 m of a dent ({'; '.join(map(_cell, near))}); each dent reported with the "

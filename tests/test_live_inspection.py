@@ -177,6 +177,7 @@ def _arc_to_nearest(x, nodes):
     return np.r_[0.0, np.cumsum(length)][j] + t[np.arange(j.size), j] * length[j]
 
 
+@pytest.mark.slow
 def test_a_window_is_cut_square_at_the_front(monkeypatch):
     """Blocks are boxes: across a bend a window of whole blocks ends obliquely, past the
     front on one side of the pipe and short of it on the other, and there the centreline

@@ -210,7 +210,7 @@ class LiveInspection:
         nodes = self.path
         if nodes.shape[0] < 2:
             return np.zeros(x.shape[0])
-        tree, segment = self._sampled()
+        tree, segment = self._sampled(nodes)
         a, b = nodes[:-1], nodes[1:]
         length = np.linalg.norm(b - a, axis=1)
         arc = np.r_[0.0, np.cumsum(length)]
@@ -489,10 +489,11 @@ class LiveInspection:
             return np.ones(x.shape[0], dtype=bool)
         return self.position(x) <= front
 
-    def _sampled(self):
-        """A k-d tree of the sensors' path sampled every `SAMPLE` radii, nodes included,
-        and the segment of each sample; built again when the path or the radius changes."""
-        nodes, spacing = self.path, SAMPLE * self._unit()
+    def _sampled(self, nodes: np.ndarray):
+        """A k-d tree of the path `nodes` (S, 3) sampled every `SAMPLE` radii, nodes
+        included, and the segment of each sample; built again when the path or the radius
+        changes."""
+        spacing = SAMPLE * self._unit()
         if self._samples is None or self._samples[:2] != (nodes.shape[0], spacing):
             a, b = nodes[:-1], nodes[1:]
             pieces = np.maximum(np.ceil(np.linalg.norm(b - a, axis=1) / spacing), 1).astype(int)
