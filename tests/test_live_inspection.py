@@ -213,8 +213,8 @@ def test_a_window_is_cut_square_at_the_front(monkeypatch):
 
     monkeypatch.setattr("zeroset.inspect._live.inspect_pipe", spy)
     arc = _arc_to_nearest(nodes, nodes)
-    bend = 1.5 + 0.5 * np.pi * 0.6  # the bend's end on the path
-    fronts = (bend - 0.2, arc[-1] - 0.3)
+    bend = 1.5 + 0.5 * np.pi * 0.6 - 0.25  # the bend's end, on the path from its first station
+    fronts = (bend - 0.3, arc[-1] - 0.3)  # in the bend, and on the last leg
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", SurfaceWarning)
         for front in fronts:
