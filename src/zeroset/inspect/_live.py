@@ -14,8 +14,8 @@ there. The window's own ends are ends of the data to the inspection (a one-sided
 smoothing kernel, the centreline's end), so each is reported by the window where it lies
 inside. A defect is the first window's whose report its region reaches (its deepest point
 before the report's end, its extent past the report's start), unless its region overlaps
-one the last window reported: a region at a junction is seen by both windows, on axial
-scales that differ by the junction's error, and is reported once.
+one already reported: a region at a junction is seen by both windows, on axial scales that
+differ by the junction's error, and is reported once.
 
 Axial positions run along the whole run: the first window's are the run's (0 where the data
 start, as in `inspect_pipe`); each later window's are shifted so that its report begins where
@@ -421,7 +421,7 @@ class LiveInspection:
         lowest = last[0] + 0.5 * STATION * pipe.radius if len(last) else a_low + offset
         kept = (found.ovality.axial + offset >= lowest) & (found.ovality.axial < a_high)
         ovality = _stations(found.ovality, kept, offset)
-        seen = () if first else self.stretches[-1].defects  # reported once (module docstring)
+        seen = self.defects()  # each region reported once (module docstring)
         defects = sorted(
             (d for d in (shifted(d, "axial", "axial_start", "axial_end")
                          for d in found.defects.defects
