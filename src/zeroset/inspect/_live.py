@@ -170,7 +170,7 @@ class LiveInspection:
         self.stretches: list[Stretch] = []
         self._up = as_points(np.reshape(up, (1, 3)), "up")[0]
         self._nodes: list = []  # the sensor path, input coordinates
-        self._samples = None  # (nodes, spacing, tree, segment of each sample), by `_sampled`
+        self._samples = None  # (node count, spacing, tree, segment of each sample): `_sampled`
         self._radius: float | None = None  # guessed, then the held nominal radius
         self._blocks: dict = {}  # block -> (path position, mesh, points, viewpoints)
         self._done = -math.inf  # path position the reports reach
