@@ -85,7 +85,9 @@ class Ovality:
         Where the centreline cannot quite follow the wall (the start of a tight bend, a
         section seen from afar), neighbouring stations disagree by a millimetre or so, and
         the running medians smooth that over: a residual there is as uncertain as that. A
-        dent hardly moves its stations' robust fits, and a joint's stations are not judged.
+        joint's stations are not judged. A dent a few times the points' noise deep moves its
+        own stations' fits, most at its clock, and so raises its own cells' error
+        (docs/inspection.md, "Limits").
         """
         return np.abs(_harmonics(axial, clock, self.axial, self.scatter, 0.0))
 
