@@ -309,8 +309,8 @@ def report(
         f"({batch_run['seconds']:.0f} s, peak {batch_run['peak_mib']:,.0f} MiB; the live "
         f"run's stages, s: {stage_seconds}; finish holds repair to simplify); the live run "
         "given the batch run's parameters, range-noise model, tolerance and lattice origin; "
-        "and the batch run "
-        "given the live run's held rho+delta, cube size and tolerance (on its own lattice "
+        "and the batch run given the live run's held rho+delta, cube size and tolerance (on "
+        "its own lattice "
         f"origin; {batch_held['seconds']:.0f} s):",
         "",
         "| | live | live on the batch's lattice | batch given the live run's parameters | batch |",
@@ -319,7 +319,7 @@ def report(
     rows = {"rho+delta, cube (mm)": [], "triangles": [], "components / boundary loops": [],
             "mean distance to the batch mesh and back (mm)": [],
             "Chamfer-L1 to the truth (mm)": []}  # fmt: skip
-    gaps, shapes, ratios = [], [], []  # of the live run and the live run on the batch's lattice
+    gaps, shapes, ratios = [], [], []  # each column's; the targets read the two live runs'
     for run in (first, alike, batch_held):
         mesh = _mesh(run["mesh"])
         between = compare_to_reference(mesh, batch_mesh, n_samples=100_000)
