@@ -12,7 +12,7 @@ from scipy.spatial import cKDTree
 
 from zeroset import io, reconstruct
 from zeroset.cli import main
-from zeroset.errors import InputError
+from zeroset.errors import InputError, InspectionError
 from zeroset.inspect import (
     Joint,
     Unreliable,
@@ -354,7 +354,7 @@ def test_nominal_diameter_and_threshold_are_used_as_given(dented_scan):
 
 def test_a_sphere_is_not_a_pipe():
     sample = sample_sphere(20_000, noise=0.001, rng=7)
-    with pytest.raises(InputError, match="pipe"):
+    with pytest.raises(InspectionError, match="pipe"):
         fit_pipe(_reconstructed(sample))
 
 
@@ -420,10 +420,26 @@ def test_cli_inspect_writes_the_joints_and_shows_what_was_found(
 def test_cli_inspect_rejects_what_is_not_a_pipe(tmp_path, capsys):
     sphere = _reconstructed(sample_sphere(20_000, noise=0.001, rng=8))
     path = io.write_mesh(tmp_path / "ball.ply", Mesh(sphere.vertices, sphere.faces))
-    assert main(["inspect", str(path), "-o", str(tmp_path / "out")]) == 2
+    assert main(["inspect", str(path), "-o", str(tmp_path / "out")]) == 3  # not bad input
     error = capsys.readouterr().err.strip().splitlines()
     assert len(error) == 1 and error[0].startswith(f"zeroset: error: {path}") and "pipe" in error[0]
     assert not (tmp_path / "out" / "defects.csv").exists()
+
+
+def test_reconstruct_writes_the_mesh_and_report_before_an_inspection_that_cannot_run(
+    tmp_path, capsys
+):
+    points = io.write_points(tmp_path / "ball.ply", sample_sphere(8_000, noise=0.001, rng=8).points)
+    mesh, report, out = tmp_path / "m.ply", tmp_path / "r.html", tmp_path / "out"
+    argv = ["reconstruct", str(points), "-o", str(mesh), "--report", str(report), "--quiet"]
+    assert main([*argv, "--inspect", str(out)]) == 3
+    error = capsys.readouterr().err.strip().splitlines()
+    assert len(error) == 1 and error[0].startswith(f"zeroset: error: {points}")
+    assert f"the mesh is written to {mesh}" in error[0] and "pipe" in error[0]
+    ball = io.read_mesh(mesh)  # the whole sphere, as without --inspect
+    assert abs(np.linalg.norm(ball.vertices, axis=1) - 1.0).max() < 0.01
+    assert "zeroset-layers" in report.read_text(encoding="utf-8")
+    assert not (out / "defects.csv").exists()
 
 
 @pytest.fixture(scope="module")

@@ -8,6 +8,7 @@ from importlib import import_module
 
 from .errors import (
     InputError,
+    InspectionError,
     MissingExtraError,
     ReconstructionError,
     SurfaceWarning,
@@ -32,6 +33,7 @@ _LAZY = {
 __all__ = [
     "DistanceField",
     "InputError",
+    "InspectionError",
     "Mesh",
     "MissingExtraError",
     "OptimizationResult",

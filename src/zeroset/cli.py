@@ -26,7 +26,8 @@ RENAMED = {
 
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; return the exit status (0 ok, 1 no surface or an internal
-    error, 2 bad input).
+    error, 2 bad input, 3 a mesh that cannot be inspected as a pipe, after everything
+    before the inspection is written).
 
     Every failure prints one line, ``zeroset: error: PATH: what is wrong``, and ``--debug``
     shows the traceback instead. Every change to the surface beyond Hoppe's method
@@ -48,7 +49,13 @@ def main(argv: list[str] | None = None) -> int:
     if args.command is None:
         parser.print_help()
         return 2
-    from .errors import InputError, ReconstructionError, SurfaceWarning, ZerosetError
+    from .errors import (
+        InputError,
+        InspectionError,
+        ReconstructionError,
+        SurfaceWarning,
+        ZerosetError,
+    )
 
     try:
         with warnings.catch_warnings():
@@ -80,6 +87,8 @@ def main(argv: list[str] | None = None) -> int:
         if source is not None and about_input and not message.startswith(named):
             message = f"{', '.join(map(str, _as_list(source)))}: {message}"
         print(f"zeroset: error: {message}", file=sys.stderr)
+        if isinstance(exc, InspectionError):
+            return 3
         return 1 if isinstance(exc, ReconstructionError) or not isinstance(exc, expected) else 2
 
 
@@ -819,29 +828,29 @@ def _run_reconstruct(args: argparse.Namespace) -> int:
             optimize=args.optimize,
             progress=not args.quiet,
         )
-        inspection = None
-        # The inspection measures the dense mesh, as fine as the surface's curvature needs,
-        # unless phase 2 made the mesh.
-        measured = result.mesh if args.optimize else result.dense_mesh
-        if args.inspect is not None:
-            sensors = config.viewpoint if cloud.viewpoints is None else cloud.viewpoints
-            inspection = _inspect(args, measured, cloud.points, sensors)
-        code = _finish(
-            result,
-            args,
-            points=cloud.points,
-            source=", ".join(map(str, args.input)),
-            mesh_path=args.output,
-            report_paths=[args.report] if args.report else [],
-            preview_path=args.preview,
-            reading=reading,
-            registration=registration,
-            title=", ".join(path.name for path in args.input),
-            inspection=inspection,
-        )
-    if inspection is not None:
-        _write_inspection(args, args.inspect, measured, cloud.points, *inspection)
-    return code
+    finish = dict(
+        points=cloud.points,
+        source=", ".join(map(str, args.input)),
+        mesh_path=args.output,
+        report_paths=[args.report] if args.report else [],
+        preview_path=args.preview,
+        reading=reading,
+        registration=registration,
+        title=", ".join(path.name for path in args.input),
+    )
+    report = _finish(result, args, **finish)  # before the inspection, which may not run
+    if args.inspect is None:
+        return 0
+    # The inspection measures the dense mesh, as fine as the surface's curvature needs,
+    # unless phase 2 made the mesh.
+    measured = result.mesh if args.optimize else result.dense_mesh
+    sensors = config.viewpoint if cloud.viewpoints is None else cloud.viewpoints
+    inspection = _inspect(args, measured, cloud.points, sensors, written=args.output)
+    html = [path for path in finish["report_paths"] if path.suffix.lower() in HTML_SUFFIXES]
+    _write_reports(html, result, report, points=cloud.points, source=finish["source"],
+                   inspection=inspection)  # the HTML report again, with the inspection in it
+    _write_inspection(args, args.inspect, measured, cloud.points, *inspection)
+    return 0
 
 
 def _run_tiled(args: argparse.Namespace, config) -> int:
@@ -872,7 +881,7 @@ def _run_tiled(args: argparse.Namespace, config) -> int:
             progress=not args.quiet,
             allow_gaps=args.allow_gaps,
         )
-    return _finish(
+    _finish(
         result,
         args,
         points=None,
@@ -881,6 +890,7 @@ def _run_tiled(args: argparse.Namespace, config) -> int:
         report_paths=[args.report] if args.report else [],
         preview_path=args.preview,
     )
+    return 0
 
 
 def _merge(args: argparse.Namespace, clouds: list, config) -> tuple:
@@ -1064,11 +1074,12 @@ def _inspection_files(folder: Path | None, more=()) -> list[Path]:
     return [folder / name for name in (*INSPECTION_FILES, *more)]
 
 
-def _inspect(args: argparse.Namespace, mesh, points, viewpoints=None) -> tuple:
+def _inspect(args: argparse.Namespace, mesh, points, viewpoints=None, *, written=None) -> tuple:
     """Inspect `mesh` as a pipe with the command's inspection options, and the scan's
     `points` and `viewpoints` when known; return the Inspection and its pictures
-    ({caption: PNG bytes})."""
-    from .errors import InputError
+    ({caption: PNG bytes}). An `InspectionError` names the mesh file `written` before, if
+    any, which it leaves as it is."""
+    from .errors import InspectionError
     from .inspect import UP, deviation_map, inspect_pipe, mesh_picture, ovality_plot
     from .viz import RenderError
 
@@ -1081,9 +1092,10 @@ def _inspect(args: argparse.Namespace, mesh, points, viewpoints=None) -> tuple:
             threshold=None if args.threshold_mm is None else args.threshold_mm / 1000.0,
             up=UP if args.up is None else args.up,
         )
-    except InputError as error:
+    except InspectionError as error:
         source = getattr(args, "mesh", None) or ", ".join(map(str, args.input))
-        raise InputError(f"{source}: not inspected as a pipe: {error}") from error
+        kept = "" if written is None else f" (the mesh is written to {written})"
+        raise InspectionError(f"{source}: not inspected as a pipe{kept}: {error}") from error
     pictures = {
         "deviation-map.png": deviation_map(inspection),
         "ovality.png": ovality_plot(inspection),
@@ -1166,7 +1178,7 @@ def _run_demo(args: argparse.Namespace) -> int:
     points_path = io.write_points(args.out / "pipe-points.ply", sample.points)
     with late_kernels_ahead(simplify=True):  # on a fresh install
         result = reconstruct(sample.points, progress=not args.quiet, seed=args.seed)
-        code = _finish(
+        _finish(
             result,
             args,
             points=sample.points,
@@ -1186,7 +1198,7 @@ def _run_demo(args: argparse.Namespace) -> int:
         names = ("pipe-points.ply", "mesh.ply", "preview.png", "report.json", "report.html")
         written = ", ".join(name for name in names if (args.out / name).exists())
         print(f"wrote       {args.out}/: {written} (open report.html in a browser)")
-    return code
+    return 0
 
 
 def _run_synth(args: argparse.Namespace) -> int:
@@ -1316,14 +1328,11 @@ def _finish(
     reading=None,
     registration=None,
     title=None,
-    inspection=None,
-) -> int:
-    """Write the mesh, reports (JSON or HTML, by suffix) and preview; print the summary.
-
-    `inspection` is an (Inspection, pictures) pair from `_inspect`, shown in HTML reports."""
+) -> dict:
+    """Write the mesh, reports (JSON or HTML, by suffix) and preview; print the summary;
+    return the report (see `zeroset.report.reconstruction_report`)."""
     from . import io
     from ._progress import peak_mib
-    from .htmlreport import write_html_report
     from .report import format_report, reconstruction_report
 
     binary = not getattr(args, "ascii", False)
@@ -1341,20 +1350,7 @@ def _finish(
     )
     if (peak := peak_mib()) is not None:
         report["peak_mib"] = peak
-    for path in report_paths:
-        if path.suffix.lower() in HTML_SUFFIXES:
-            write_html_report(
-                path,
-                result,
-                points=points,
-                source=source,
-                report=report,
-                **({} if inspection is None else dict(
-                    inspection=inspection[0], pictures=_captioned(inspection[1])
-                )),
-            )  # fmt: skip
-        else:
-            io.write_json(path, report)
+    _write_reports(report_paths, result, report, points=points, source=source)
     if preview_path is not None:
         from .errors import MissingExtraError
         from .viz import RenderError, preview
@@ -1368,4 +1364,26 @@ def _finish(
     if not args.quiet:
         print(format_report(report))
         print(f"mesh        written to {written}")
-    return 0
+    return report
+
+
+def _write_reports(paths, result, report: dict, *, points, source, inspection=None) -> None:
+    """Write `report` to each of `paths`: JSON, or HTML by suffix, which shows the points,
+    the meshes and `inspection`, an (Inspection, pictures) pair from `_inspect`."""
+    from . import io
+    from .htmlreport import write_html_report
+
+    for path in paths:
+        if path.suffix.lower() in HTML_SUFFIXES:
+            write_html_report(
+                path,
+                result,
+                points=points,
+                source=source,
+                report=report,
+                **({} if inspection is None else dict(
+                    inspection=inspection[0], pictures=_captioned(inspection[1])
+                )),
+            )  # fmt: skip
+        else:
+            io.write_json(path, report)

@@ -2,6 +2,7 @@
 
 __all__ = [
     "InputError",
+    "InspectionError",
     "MissingExtraError",
     "ReconstructionError",
     "SurfaceWarning",
@@ -15,6 +16,11 @@ class ZerosetError(Exception):
 
 class InputError(ZerosetError, ValueError):
     """An input file or array cannot be used: missing, unreadable, malformed or degenerate."""
+
+
+class InspectionError(InputError):
+    """A mesh (and its points) that cannot be inspected as a pipe: no tube in it, or too
+    little of the circle covered to fit one; the message says what would make it run."""
 
 
 class MissingExtraError(ZerosetError, ImportError):

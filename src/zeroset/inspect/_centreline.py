@@ -20,7 +20,7 @@ from scipy.spatial import cKDTree
 
 from .._unique import distinct
 from .._validate import require_rng
-from ..errors import InputError
+from ..errors import InspectionError
 from ..evaluate import sample_surface
 from ..neighbours import query_workers
 from ..topology import boundary_edges, face_area_vectors, vertex_normals
@@ -224,7 +224,7 @@ def fit_pipe(
 
     Raises
     ------
-    InputError
+    InspectionError
         If the mesh is not a tube: no consistent curvature, or too short to fit.
     """
     rng = require_rng(rng)
@@ -522,7 +522,7 @@ def _radius_and_side(mesh: Mesh, rng: np.random.Generator) -> tuple[float, float
         reach = 0.25 / abs(first)
     curvature = _mean_curvature(points, normals, reach)
     if curvature is None:
-        raise InputError("the mesh is too small to fit a pipe to")
+        raise InspectionError("the mesh is too small to fit a pipe to")
     return 0.5 / abs(curvature), (1.0 if curvature < 0 else -1.0)
 
 
@@ -535,9 +535,11 @@ def _mean_curvature(points: np.ndarray, normals: np.ndarray, reach: float) -> fl
         return None
     step = points[pairs[:, 1]] - points[pairs[:, 0]]
     turn = normals[pairs[:, 1]] - normals[pairs[:, 0]]
-    curvature = float(np.einsum("ij,ij->", turn, step) / np.einsum("ij,ij->", step, step))
+    curvature = float(
+        np.median(np.einsum("ij,ij->i", turn, step) / np.einsum("ij,ij->i", step, step))
+    )
     if not np.isfinite(curvature) or curvature == 0.0:
-        raise InputError("the mesh is flat: no pipe wall to fit")
+        raise InspectionError("the mesh is flat: no pipe wall to fit")
     return curvature
 
 
@@ -557,7 +559,7 @@ def _straight_run(centres: np.ndarray, radius: float, stations=None) -> np.ndarr
     means = np.stack([np.bincount(label, centres[:, i]) for i in range(3)], 1) / count[:, None]
     means = means[count >= max(3, 0.05 * np.median(count))]
     if means.shape[0] < 3:
-        raise InputError("the mesh does not span a pipe: its normals do not meet on an axis")
+        raise InspectionError("the mesh does not span a pipe: its normals do not meet on an axis")
     pairs = cKDTree(means).query_pairs(2.0 * cell, output_type="ndarray")
     lengths = np.linalg.norm(means[pairs[:, 0]] - means[pairs[:, 1]], axis=1)
     graph = sparse.coo_matrix(
@@ -584,7 +586,10 @@ def _straight_run(centres: np.ndarray, radius: float, stations=None) -> np.ndarr
         node = int(before[node])
         path.append(node)
     if len(path) < 3:
-        raise InputError("the mesh is too short along its axis to fit a pipe to")
+        raise InspectionError(
+            "the mesh is too short along its axis to fit a pipe to: it must be longer than a "
+            "radius"
+        )
     return means[path[::-1]]
 
 
@@ -765,7 +770,10 @@ def _refit(pipe: Pipe, wall: np.ndarray, up, guide: np.ndarray) -> Pipe:
     fits = section_fits(pipe, located)
     good = fits["centred"]
     if np.count_nonzero(good) < 4:
-        raise InputError("too few cross-sections of the pipe are covered by the mesh to fit it")
+        raise InspectionError(
+            "too few cross-sections of the pipe are covered by the mesh to fit it: four "
+            "stations or more need data on a quarter of the circle"
+        )
     along, coef = fits["axial"][good], fits["circle"][good]
     centre, tangent, up_dir = pipe._at(along)
     right = np.cross(tangent, up_dir)
