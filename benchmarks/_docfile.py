@@ -29,6 +29,7 @@ SECTIONS = (
     "registered",
     "inspection",
     "runs",
+    "real",
     "peers",
     "holes",
     "live",
@@ -83,6 +84,9 @@ and keeps the rest (this introduction included):
   and defects, scanned by the in-pipe model, against their truth: the centreline, defects,
   false defects and branches, joints, ovality, the threshold with and without joints, and
   the time of a 1M-point inspection (`benchmarks/bench_runs.py`).
+- [Inspection of real scans](#inspection-of-real-scans): the real sewer pipe in shared/data
+  as it is, moved, reversed and halved, and with dents, bulges, deformations and joints of
+  known size put into its points (`benchmarks/bench_real.py`).
 - [Peers](#peers-zeroset-against-open3d-pymeshlab-poissonrecon-and-vtk): zeroset against the
   tools a user would otherwise pick (Open3D, PyMeshLab, Kazhdan's PoissonRecon with its
   trimming, VTK) on synthetic pipes, a sphere and a torus with exact ground truth and on real

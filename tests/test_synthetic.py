@@ -744,7 +744,10 @@ def test_cli_synth_help_names_the_scan_kinds_and_their_stations(capsys):
         ("damaged-pipe", ["--stations", "0.5"], "--stations goes with damaged-pipe-scan and"),
         ("pipe-scan", ["--stations", "0.5"], "--stations goes with damaged-pipe-scan and"),
         ("damaged-elbow-scan", ["--length", "3"], "--length does not apply to damaged-elbow-scan"),
-        ("sphere", ["--dent", "1,0,0.01,0.2"], "--dent, --bulge and --ovality go with"),
+        ("sphere", ["--dent", "1,0,0.01,0.2"], "--dent and --bulge go with the damaged-"),
+        ("sphere", ["--ovality", "0.01"], "--ovality goes with the damaged-"),
+        ("sphere", ["--joint", "gap,1,0.01"], "--joint, --mesh and --up go with inject"),
+        ("inject", [], "a scan goes with inject, and inject needs one"),
         ("damaged-elbow", ["--length", "3"], "--length does not apply to damaged-elbow"),
     ],
 )

@@ -339,7 +339,14 @@ def _synth_command(commands, parents) -> None:
         "<stem>-truth.json. Clock angles are degrees clockwise looking along the pipe from its "
         "start, 12 o'clock (0) being +y (for pipe-run: up, +z at the start, carried along).",
     )
-    parser.add_argument("kind", choices=sorted(SYNTH_KINDS), help="what to sample")
+    parser.add_argument(
+        "kind",
+        choices=sorted([*SYNTH_KINDS, "inject"]),
+        help="what to sample; inject: put --dent, --bulge and --joint into the points of SCAN",
+    )
+    parser.add_argument(
+        "scan", nargs="?", type=Path, help="with inject: a real scan (" + _formats("points") + ")"
+    )
     parser.add_argument("-o", "--output", type=Path, required=True, help="points file (.ply)")
     parser.add_argument(
         "--points",
@@ -372,9 +379,32 @@ def _synth_command(commands, parents) -> None:
             action="append",
             default=[],
             metavar="AXIAL,CLOCK,DEPTH,WIDTH",
-            help=f"add a {kind} (damaged-*): centre at AXIAL metres along the centreline and "
-            f"CLOCK degrees, DEPTH and WIDTH (patch diameter) in metres; repeatable",
+            help=f"add a {kind} (damaged-*, inject): centre at AXIAL metres along the "
+            f"centreline and CLOCK degrees, DEPTH and WIDTH (patch diameter) in metres; "
+            f"repeatable",
         )
+    inject = parser.add_argument_group(
+        "inject",
+        "known truth put into a real scan: positions are the inspection's (metres along the "
+        "centreline fitted to the scan from where its data start, clock degrees from 12 "
+        "o'clock, the world's up); the points move along their beams where the scan has "
+        "sensor positions, else towards the axis; the truth goes to <stem>-truth.json",
+    )
+    inject.add_argument(
+        "--joint",
+        action="append",
+        default=[],
+        metavar="KIND,AXIAL,SIZE[,CLOCK[,DEPTH]]",
+        help="add a joint: gap (SIZE its axial width, DEPTH its recess, default 0.01), "
+        "offset (SIZE its sideways step towards CLOCK) or bead (SIZE its height into the "
+        "bore), metres; repeatable",
+    )
+    inject.add_argument(
+        "--mesh", type=Path, help="the scan's mesh to fit the pipe to (default: reconstructed)"
+    )
+    inject.add_argument(
+        "--up", type=_number_list(3), metavar="x,y,z", help="the world's up (default: 0,0,1)"
+    )
     parser.add_argument(
         "--ovality",
         metavar="VALUE[,CLOCK]",
@@ -847,8 +877,9 @@ def _run_reconstruct(args: argparse.Namespace) -> int:
     sensors = config.viewpoint if cloud.viewpoints is None else cloud.viewpoints
     inspection = _inspect(args, measured, cloud.points, sensors, written=args.output)
     html = [path for path in finish["report_paths"] if path.suffix.lower() in HTML_SUFFIXES]
-    _write_reports(html, result, report, points=cloud.points, source=finish["source"],
-                   inspection=inspection)  # the HTML report again, with the inspection in it
+    _write_reports(
+        html, result, report, points=cloud.points, source=finish["source"], inspection=inspection
+    )  # the HTML report again, with the inspection in it
     _write_inspection(args, args.inspect, measured, cloud.points, *inspection)
     return 0
 
@@ -1218,8 +1249,14 @@ def _run_synth(args: argparse.Namespace) -> int:
     damaged = args.kind.startswith("damaged-")
     scan = args.kind.endswith("-scan")
     run = args.kind == "pipe-run"
-    if not damaged and (args.dent or args.bulge or (args.ovality is not None and not run)):
-        raise InputError("--dent, --bulge and --ovality go with the damaged-* kinds")
+    if (args.kind == "inject") != (args.scan is not None):
+        raise InputError("a scan goes with inject, and inject needs one: zeroset synth inject SCAN")
+    if args.kind != "inject" and (args.joint or args.mesh or args.up):
+        raise InputError("--joint, --mesh and --up go with inject")
+    if not (damaged or args.kind == "inject") and (args.dent or args.bulge):
+        raise InputError("--dent and --bulge go with the damaged-* kinds and inject")
+    if not (damaged or run) and args.ovality is not None:
+        raise InputError("--ovality goes with the damaged-* kinds and pipe-run")
     for name in ("bends", "out_of_plane", "tee", "defects", "joints", "uniform"):
         if not run and getattr(args, name) not in (None, False, 0):
             raise InputError(f"--{name.replace('_', '-')} goes with pipe-run")
@@ -1228,6 +1265,26 @@ def _run_synth(args: argparse.Namespace) -> int:
     with_length = ("cylinder", "tee", "pipe-scan", "damaged-pipe", "damaged-pipe-scan")
     if args.length is not None and args.kind not in with_length:
         raise InputError(f"--length does not apply to {args.kind}")
+    defects = []
+    for kind in ("dent", "bulge"):
+        for text in getattr(args, kind):
+            form = "AXIAL,CLOCK,DEPTH,WIDTH (metres, degrees, metres, metres)"
+            axial, clock, depth, width = parse_numbers(f"--{kind}", text, form, (4,))
+            try:
+                defects.append(synthetic.Defect(kind, axial, clock, depth, width))
+            except InputError as error:
+                raise InputError(f"--{kind} {text}: {error}") from None
+    if args.kind == "inject":
+        joints = []
+        for text in args.joint:
+            kind, _, rest = text.partition(",")
+            form = "KIND,AXIAL,SIZE[,CLOCK[,DEPTH]] (a kind, then metres, degrees, metres)"
+            values = parse_numbers("--joint", rest, form, (2, 3, 4))
+            try:
+                joints.append(synthetic.Joint(kind, *values))
+            except InputError as error:
+                raise InputError(f"--joint {text}: {error}") from None
+        return _inject(args, defects, joints)
     generator = getattr(synthetic, SYNTH_KINDS[args.kind])
     options = {"rng": args.seed, "outliers": args.outliers}
     if args.radius is not None:
@@ -1235,15 +1292,6 @@ def _run_synth(args: argparse.Namespace) -> int:
     if args.length is not None:
         options["length"] = args.length
     if damaged:
-        defects = []
-        for kind in ("dent", "bulge"):
-            for text in getattr(args, kind):
-                form = "AXIAL,CLOCK,DEPTH,WIDTH (metres, degrees, metres, metres)"
-                axial, clock, depth, width = parse_numbers(f"--{kind}", text, form, (4,))
-                try:
-                    defects.append(synthetic.Defect(kind, axial, clock, depth, width))
-                except InputError as error:
-                    raise InputError(f"--{kind} {text}: {error}") from None
         options["defects"] = defects
         if args.ovality is not None:
             ovality = parse_numbers("--ovality", args.ovality, "VALUE or VALUE,CLOCK", (1, 2))
@@ -1288,6 +1336,38 @@ def _run_synth(args: argparse.Namespace) -> int:
             f"wrote {sample.points.shape[0]:,} points to {points_path}"
             + (f", the true surface to {truth_path}" if truth_path else "")
             + (f" and the truth record to {record}" if record else "")
+        )
+    return 0
+
+
+def _inject(args: argparse.Namespace, defects: list, joints: list) -> int:
+    """``zeroset synth inject``: `defects` and `joints` put into the points of ``args.scan``,
+    written with their truth."""
+    from . import io
+    from .inspect import UP, fit_pipe
+    from .pipeline import reconstruct
+    from .synthetic import inject
+
+    record = args.output.with_name(f"{args.output.stem}-truth.json")
+    _check_outputs([args.output, record], [args.scan, args.mesh], force=args.force)
+    cloud = io.read_points(args.scan)
+    if args.mesh is not None:
+        mesh = io.read_mesh(args.mesh)
+    else:
+        mesh = reconstruct(cloud.points, viewpoints=cloud.viewpoints, progress=not args.quiet)
+        mesh = mesh.dense_mesh
+    pipe = fit_pipe(mesh, cloud.points, viewpoints=cloud.viewpoints, up=args.up or UP)
+    moved, truth = inject(
+        cloud.points, pipe, defects=defects, joints=joints, viewpoints=cloud.viewpoints
+    )
+    io.write_points(args.output, moved, viewpoints=cloud.viewpoints)
+    io.write_json(record, {"source": str(args.scan), **truth})
+    if not args.quiet:
+        print(
+            f"moved {truth['moved']:,} of {moved.shape[0]:,} points for {len(defects)} "
+            f"defect(s) and {len(joints)} joint(s) on the pipe fitted to {args.scan} "
+            f"({pipe.length:.2f} m, diameter {2000 * pipe.radius:.1f} mm); wrote {args.output} "
+            f"and the truth to {record}"
         )
     return 0
 

@@ -29,8 +29,10 @@ from ._frame import UP, clock_angles, transport_frames, unit
 
 __all__ = ["Pipe", "Unreliable", "check_stations", "fit_pipe", "section_fits", "station_fits"]
 
-#: Points sampled on the mesh for its first radius.
+#: Points sampled on the mesh for its first radius, and the edge of the patches whose
+#: curvatures it is the median of, in reaches of the pairs' steps (see `_mean_curvature`).
 CURVATURE_SAMPLES = 20_000
+PATCH = 4.0
 #: Positions used to fit the cross-sections (a seeded subset beyond).
 MAX_FIT_VERTICES = 100_000
 #: Station length, knot spacing and the centreline's sampling, as shares of the radius.
@@ -54,10 +56,8 @@ ARC = 4
 THIN = 0.02
 #: Fewest points a station needs for its fit.
 MIN_STATION_POINTS = 16
-#: A station is unreliable where its section leaves residuals spread more than this many
-#: times the points' noise, or where no section is fitted over more than `GUIDED` radii
-#: running.
-SPREAD = 3.0
+#: A stretch is not judged where no section is fitted over more than this many radii
+#: running (see `check_stations`).
 GUIDED = 2.0
 #: Vertices whose curvature is further than this share from the pipe's do not place its
 #: first centreline (a branch of another diameter, a flange, the rim), unless fewer than
@@ -246,7 +246,10 @@ def fit_pipe(
         sensors = np.broadcast_to(np.asarray(viewpoints, dtype=np.float64), np.shape(points))
         stations = _stations(sensors - shift, radius)
     axis = mesh.vertices[used] + towards_axis * radius * normals[used]
-    path = _straight_run(axis, radius, stations)
+    # A point pushed off the wall that lands near it is not on the axis: a rim's normal
+    # curls along the pipe, a groove's or a ring's tilts.
+    clear = cKDTree(mesh.vertices).query(axis, workers=query_workers())[0]
+    path = _straight_run(axis[clear > (1.0 - BRANCHED) * radius], radius, stations)
     run = path[-1] - path[0]
     if stations is None and run[np.argmax(np.abs(run))] < 0:  # the largest component's way
         path = path[::-1]
@@ -288,7 +291,8 @@ def station_fits(
     centre (``a1``, ``b1``) is fitted, to the distances less that radius, and ``a0`` is
     the radius at the station's centre.
     Returns arrays per station: ``axial`` (K,) centres, ``coef`` (K, 5) or (K, 3),
-    ``count`` (K,), ``fitted`` (K,) bool, ``complete`` (K,) bool and ``spread`` (K,),
+    ``count`` (K,), ``coverage`` (K,), the sectors its points cover, ``fitted`` (K,) bool,
+    ``complete`` (K,) bool and ``spread`` (K,),
     the median over the sectors of angle of the robust spread of the fit's inliers in each
     (a dent in a few sectors leaves it, a section that fits nowhere does not).
 
@@ -347,6 +351,7 @@ def station_fits(
         "axial": centres,
         "coef": coef,
         "count": count,
+        "coverage": covered.sum(axis=1),
         "fitted": fitted,
         "complete": fitted & covered.all(axis=1),
         "spread": spread,
@@ -384,40 +389,40 @@ def section_fits(pipe: Pipe, located, *, step: float | None = None) -> dict:
     return {**sections, "circle": circle, "centred": centred | arc, "arc": arc}
 
 
-def check_stations(pipe: Pipe, located, noise, *, excused=()) -> tuple[Unreliable, ...]:
-    """The stretches of `pipe` whose sections do not explain their wall: `located` is
-    ``pipe.locate(x)`` of the points x, and ``noise(axial)`` their spread about the local
-    wall (m) at axial positions (m), such as `WallMap.noise_along`.
+def check_stations(pipe: Pipe, located, *, excused=()) -> tuple[Unreliable, ...]:
+    """The stretches of `pipe` that the data leave unjudged: `located` is
+    ``pipe.locate(x)`` of the points x.
 
-    A station (`station_fits`) is unreliable where its fitted section leaves a robust
-    spread of residuals above `SPREAD` times the `noise` in most sectors of angle (a dent
-    takes a few; the wall there is no circle or ellipse round this centreline: a
-    junction, a collapse, a centreline that cut a corner), and where no section could be
-    fitted for more than `GUIDED` radii running (the data do not go round the pipe: the
-    centreline there is placed by arcs of an assumed radius, follows the axis points or
-    runs straight on, and no residual there can tell a dent from a section). Stations
-    within the axial stretches `excused` ((start, end) pairs, metres: ring features,
-    whose wall is meant to leave the section) are not judged. Consecutive stations
-    with the same reason make one stretch.
+    A stretch is not judged where no section could be fitted to its points for more than
+    `GUIDED` radii running because the data do not go round the pipe: they cover fewer
+    than `COVERED` of `SECTORS` sectors of angle (a shadow, a water line, the far side of
+    a bend), or a station holds fewer than `MIN_STATION_POINTS`. The centreline there is
+    placed by arcs of an assumed radius, follows the axis points or runs straight on, and
+    no residual there can tell a dent from a section. The reason gives the coverage the
+    points show. A station the fitted section does not explain is never excused here: a
+    joint, a defect or a deformation explains it (see `inspect_pipe`). Stations within the
+    axial stretches `excused` ((start, end) pairs, metres: ring features, whose wall is
+    meant to leave the section) are not judged. Consecutive stations with the same reason
+    make one stretch.
     """
     circles = station_fits(pipe, located, oval=False)
     sections = station_fits(pipe, located)
     good = circles["fitted"] | sections["complete"]
-    scale = np.where(sections["complete"], sections["spread"], circles["spread"])
     axial = circles["axial"]
     step = axial[1] - axial[0] if axial.size > 1 else pipe.length
     inside = (axial > 0.0) & (axial < pipe.length)
     reason = np.full(axial.size, "", dtype=object)
-    local = noise(axial)
-    spread = good & (scale > SPREAD * local)
-    reason[spread] = [
-        f"its section leaves residuals of {1000 * v:.1f} mm, against noise of {1000 * n:.1f} mm"
-        for v, n in zip(scale[spread], local[spread], strict=True)
-    ]
     runs = np.split(np.arange(axial.size), np.flatnonzero(np.diff(good.astype(np.int8))) + 1)
     for run in runs:
         if not good[run[0]] and run.size * step > GUIDED * pipe.radius:
-            reason[run] = "no section could be fitted: the data do not go round the pipe"
+            covered, count = circles["coverage"][run], circles["count"][run]
+            few = np.median(count) < MIN_STATION_POINTS
+            reason[run] = (
+                f"too few points: {int(np.median(count))} a station of {step:.3g} m (median)"
+                if few
+                else f"the data do not go round the pipe: they cover {int(np.median(covered))} "
+                f"of {SECTORS} sectors of {360 // SECTORS} degrees (median over the stretch)"
+            )
     for start, end in excused:
         reason[(axial > start - step) & (axial < end + step)] = ""
     reason[~inside] = ""
@@ -527,17 +532,24 @@ def _radius_and_side(mesh: Mesh, rng: np.random.Generator) -> tuple[float, float
 
 
 def _mean_curvature(points: np.ndarray, normals: np.ndarray, reach: float) -> float | None:
-    """``sum(dn . dp) / sum(|dp|^2)`` over the pairs of `points` (N, 3) with unit
-    `normals` (N, 3) closer than `reach` (see `_radius_and_side`); None where fewer than
-    32 pairs are."""
+    """The median over patches of the wall (cubes of `PATCH` reaches) of ``sum(dn . dp) /
+    sum(|dp|^2)`` over the pairs of `points` (N, 3) with unit `normals` (N, 3) closer than
+    `reach` (see `_radius_and_side`): a joint's groove, a ring or a deposit, which bend the
+    wall their own way, do not pull it, and a facet's flat middle does not set it. None
+    where fewer than 32 pairs are."""
     pairs = cKDTree(points).query_pairs(reach, output_type="ndarray")
     if pairs.shape[0] < 32:
         return None
     step = points[pairs[:, 1]] - points[pairs[:, 0]]
     turn = normals[pairs[:, 1]] - normals[pairs[:, 0]]
-    curvature = float(
-        np.median(np.einsum("ij,ij->i", turn, step) / np.einsum("ij,ij->i", step, step))
+    key = np.floor(points[pairs[:, 0]] / (PATCH * reach)).astype(np.int64)
+    patch = np.unique(key, axis=0, return_inverse=True)[1].ravel()
+    count = np.bincount(patch)
+    ratios = np.bincount(patch, np.einsum("ij,ij->i", turn, step)) / np.maximum(
+        np.bincount(patch, np.einsum("ij,ij->i", step, step)), 1e-300
     )
+    full = count >= 0.25 * np.median(count)  # not the patches a boundary cuts short
+    curvature = float(np.median(ratios[full]))
     if not np.isfinite(curvature) or curvature == 0.0:
         raise InspectionError("the mesh is flat: no pipe wall to fit")
     return curvature
@@ -573,7 +585,8 @@ def _straight_run(centres: np.ndarray, radius: float, stations=None) -> np.ndarr
     if stations is not None and len(stations) >= 2:
         near = cKDTree(means[main]).query(np.asarray(stations)[[0, -1]])[1]
         first, last = np.flatnonzero(main)[near]
-        start, node = _beyond(tree, ends, first, last), _beyond(tree, ends, last, first)
+        start = _beyond(tree, means, ends, first, last, 2.0 * cell)
+        node = _beyond(tree, means, ends, last, first, 2.0 * cell)
     else:
         # The two ends farthest apart: the one farthest from the ends' mean, then the one
         # farthest from it (no all-pairs table: a long pipe's tree has many short twigs).
@@ -587,22 +600,25 @@ def _straight_run(centres: np.ndarray, radius: float, stations=None) -> np.ndarr
         path.append(node)
     if len(path) < 3:
         raise InspectionError(
-            "the mesh is too short along its axis to fit a pipe to: it must be longer than a "
-            "radius"
+            "the mesh is too short along its axis to fit a pipe to: it must be longer than a radius"
         )
     return means[path[::-1]]
 
 
-def _beyond(tree, ends: np.ndarray, near: int, far: int) -> int:
-    """The end of `tree` (of the nodes `ends`) farthest beyond node `near` seen from node
-    `far`: among the ends whose path to `far` passes by `near`; `near` if none does."""
-    from_near, from_far = csgraph.dijkstra(tree, directed=False, indices=[near, far])
-    through = np.abs(from_far[ends] - from_far[near] - from_near[ends]) <= 1e-9 * (
-        1.0 + from_far[ends]
-    )
-    if not through.any():
-        return int(near)
-    return int(ends[through][np.argmax(from_near[ends][through])])
+def _beyond(tree, means: np.ndarray, ends: np.ndarray, near: int, far: int, reach: float) -> int:
+    """The end of `tree` (of the nodes `ends`, at `means` (K, 3)) farthest along it from
+    node `far` among those whose path to `far` passes within `reach` of node `near`;
+    `near` if none does. The node nearest a station may sit on a twig of the tree, which
+    no end's path passes through."""
+    length, before = csgraph.dijkstra(tree, directed=False, indices=far, return_predecessors=True)
+    best, farthest = int(near), -1.0
+    for end in ends:
+        node = int(end)
+        while node >= 0 and np.linalg.norm(means[node] - means[near]) > reach:
+            node = int(before[node])
+        if node >= 0 and length[end] > farthest:
+            best, farthest = int(end), float(length[end])
+    return best
 
 
 def _stations(viewpoints: np.ndarray, radius: float) -> np.ndarray | None:

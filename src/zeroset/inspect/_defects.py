@@ -165,7 +165,7 @@ def find_defects(
     default the median over the wall of the residual a cell needs to be significant) are
     not reported. `located` is ``pipe.locate(samples)`` when already computed. Cells in
     the axial stretches `excluded` ((start, end) pairs, metres: ring features, and
-    stations whose sections the fit does not explain) are not judged at all.
+    stretches whose data do not go round the pipe) are not judged at all.
     """
     residual = wall.residual
     cell_axial = wall.axial_edges[1] - wall.axial_edges[0]

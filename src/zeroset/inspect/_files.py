@@ -289,25 +289,26 @@ def ovality_table(found: Ovality, stretches) -> list[dict]:
 
 
 def inspection_lines(inspection: Inspection) -> list[str]:
-    """The inspection as printed lines: the pipe, its stations, then one line per
-    unreliable stretch, defect, joint and branch."""
+    """The inspection as printed lines: the pipe, the stretches not judged, the
+    centreline and stations, then one line per defect, joint and branch."""
     facts = inspection_summary(inspection)
     lines = [
         f"pipe        diameter {1000 * facts['nominal_diameter']:.1f} mm nominal, "
-        f"{1000 * facts['measured_diameter']:.1f} mm measured",
-        "centreline  " + _length_line(facts),
-        *_station_lines(facts["stations"]),
+        f"{1000 * facts['measured_diameter']:.1f} mm measured"
     ]
-    if facts["unreliable"]:
-        count = len(facts["unreliable"])
+    if facts["unreliable"]:  # up front: what the report does not speak for
+        count, length = len(facts["unreliable"]), facts["length"]
+        unjudged = sum(s["axial_end"] - s["axial_start"] for s in facts["unreliable"])
         lines.append(
-            f"unreliable  {count} stretch{'es' if count != 1 else ''} whose sections the fit "
-            "does not explain; nothing there is reported as a defect"
+            f"not judged  {unjudged:.2f} m of {length:.2f} m ({100 * unjudged / length:.0f} %) "
+            f"in {count} stretch{'es' if count != 1 else ''} the data leave short; nothing "
+            "there is reported as a defect"
         )
     lines.extend(
         f"  {s['axial_start']:.3f}-{s['axial_end']:.3f} m: {s['reason']}"
         for s in facts["unreliable"]
     )
+    lines += ["centreline  " + _length_line(facts), *_station_lines(facts["stations"])]
     lines.append(
         f"defects     {len(facts['defects'])} beyond {facts['threshold_mm']:.2f} mm "
         f"({facts['significance']:.1f} standard errors)"

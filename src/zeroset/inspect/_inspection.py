@@ -80,7 +80,7 @@ def inspect_pipe(
 
     The stages: `fit_pipe` (the centreline), `ovality` and `deviation`, `unroll` (the
     wall map, with the points' noise about the local wall), `find_joints` (ring
-    features), `check_stations` (stretches whose sections the fit does not explain,
+    features), `check_stations` (stretches whose data do not go round the pipe,
     reported in ``pipe.unreliable``) and `find_defects`, which judges neither the joints'
     stretches nor the unreliable ones.
 
@@ -155,7 +155,7 @@ def inspect_pipe(
     smallest = smallest_depth(wall, pipe) if threshold is None else float(threshold)
     joints = find_joints(pipe, found_ovality, wall, located, beams, smallest=smallest)
     spans = joint_spans(joints, pipe, wall.kernel)
-    pipe = replace(pipe, unreliable=check_stations(pipe, located, wall.noise_along, excused=spans))
+    pipe = replace(pipe, unreliable=check_stations(pipe, located, excused=spans))
     timings["joints and checks"] = time.perf_counter() - start
     start = time.perf_counter()
     defects = find_defects(

@@ -39,6 +39,10 @@ OFFSET_REACH = 0.75
 OFFSET_GAP = 0.25
 MIN_OFFSET = 0.005
 OFFSET_STATIONS = 4
+#: The step a cubic and a step fitted across a boundary read from a change of curvature
+#: there, per unit of that change times the reach squared: derived, the least-squares fit
+#: of ``max(x, 0)^2 / 2`` on stations from `OFFSET_GAP` to `OFFSET_REACH` each side.
+KINK_STEP = 0.06
 
 
 @dataclass(frozen=True)
@@ -79,8 +83,8 @@ def find_joints(
 
     `located` is ``pipe.locate(x)`` of the scan's points (or samples of the mesh), and
     `wall` their map, which gives their noise about the local wall and where the wall is
-    whole: only rings whose map rows, and `BASELINE` radii round them, are defined all
-    round and hold no branch are judged.
+    whole: only rings whose map rows, and `BASELINE` radii round them, are defined over
+    `ALL_ROUND` of the circle at least and hold no branch are judged.
 
     **Gaps and beads** change the wall all round at once. The points' residuals from
     their station's section (`Ovality.section_at`) are averaged in rings `RING` radii
@@ -109,11 +113,12 @@ def find_joints(
     the fit where that exceeds their own errors: the sections of a bend seen obliquely
     from afar), and `MIN_OFFSET` radii, the largest is an offset towards the clock of
     the step, at the axial position where the centres cross half of it, if the outer
-    halves of both sides show at least half of it too (`_lasting`). Only straight
-    stretches are judged, where the centreline's mean curvature over the fit stays below
-    ``MIN_OFFSET r / OFFSET_REACH^2`` (below that, where a bend meets a leg, the cubic
-    misses the centres by less than half the smallest step reported); offsets in bends
-    are not.
+    halves of both sides show at least half of it too (`_lasting`). Only stretches that
+    bend little are judged: where a bend meets a leg, the curvature changes by about
+    twice the centreline's mean curvature over the fit, and the cubic and step read
+    `KINK_STEP` times that change times the reach squared as a step; that must stay below
+    half the smallest step reported. Offsets in tight bends are not judged; a real pipe
+    whose lengths are laid in slight turns is.
 
     Features that change the wall's radius by less than `smallest` (metres: a bead's
     height, a gap's depth, an offset's step) are not reported: `inspect_pipe` passes the
@@ -134,7 +139,11 @@ def find_joints(
         s_a, _, s_r = steps.T
         known = np.isfinite(s_a)
         blur[known] *= np.abs(s_a[known]) / np.maximum(np.abs(s_r[known]), 0.2)
-    whole = np.isfinite(wall.residual).all(axis=1) & (wall.off_wall < BRANCH).all(axis=1)
+    # a ring is judged over the sectors its points cover, as `_all_round` judges it: a
+    # shadow or a water line takes a few, a branch's opening is no wall
+    whole = (np.isfinite(wall.residual).mean(axis=1) >= ALL_ROUND) & (wall.off_wall < BRANCH).all(
+        axis=1
+    )
     reach = int(np.ceil(BASELINE * pipe.radius / (wall.axial_edges[1] - wall.axial_edges[0])))
     whole = ~ndimage.binary_dilation(~whole, iterations=reach, border_value=1)
     offsets = _offsets(pipe, located, wall.noise_along)
@@ -374,13 +383,15 @@ def _offsets(pipe: Pipe, located, noise) -> list[Joint]:
     bounds = 0.5 * (along[:-1] + along[1:])
     jumps, errors = np.zeros((bounds.size, 3)), np.full(bounds.size, np.inf)
     models = [None] * bounds.size
-    # where the centreline bends, a cubic across the gap misses by up to curvature *
-    # reach^2 / 2: judge only where that stays below half the smallest step reported
+    # where a bend meets a leg, the curvature changes by about twice the mean over the
+    # fit, and a cubic and a step across it read a step of about 0.06 times that change
+    # times reach^2 (`KINK_STEP`): judge only where that stays below half the smallest
+    # step reported
     turn = _mean_curvature(pipe, bounds, reach)
     for k, at in enumerate(bounds):
         gap = np.abs(along - at)
         near = (gap <= reach) & (gap >= OFFSET_GAP * pipe.radius)
-        if turn[k] > MIN_OFFSET * pipe.radius / reach**2:
+        if KINK_STEP * 2.0 * turn[k] * reach**2 > 0.5 * MIN_OFFSET * pipe.radius:
             continue
         before, after = np.count_nonzero(near & (along < at)), np.count_nonzero(near & (along > at))
         if min(before, after) < OFFSET_STATIONS:

@@ -292,7 +292,7 @@ def _marks(axes, inspection: Inspection) -> list:
     if inspection.joints:
         legend.append(Line2D([], [], label="joint (kind, size)", **line))
     if inspection.pipe.unreliable:
-        legend.append(Patch(label="unreliable fit: not judged", **shade))
+        legend.append(Patch(label="data short of the circle: not judged", **shade))
     return legend
 
 

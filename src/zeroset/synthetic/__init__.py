@@ -18,6 +18,9 @@ for simulated scans, each point's sensor position (``viewpoints``).
   and `Tee` branches; `pipe_run` samples its walls, `scan_pipe_run` scans it from stations
   along it, and `random_pipe_run` draws one (a `RunSpec`) from a seed. Their
   ``truth_record`` holds the path, the true centreline, the defects, joints and tees.
+- Truth for a real scan: `inject` moves its points as the wall would be with dents,
+  bulges and joints of known size in it (along the beams where the sensor positions are
+  known, else towards the fitted axis).
 - `add_noise`, `add_outliers`, and `write_sample` (points and truth mesh as PLY, the truth
   record as JSON).
 
@@ -25,6 +28,7 @@ Units are metres. The same seed gives identical arrays.
 """
 
 from ._damage import damaged_pipe, scan_damaged_pipe
+from ._inject import inject
 from ._path import PipePath
 from ._pipes import sample_elbow, sample_tee
 from ._runs import RUN_CLOCK_CONVENTION, RunSpec, Tee, pipe_run, random_pipe_run, scan_pipe_run
@@ -50,6 +54,7 @@ __all__ = [
     "add_outliers",
     "damaged_pipe",
     "hokuyo_accuracy",
+    "inject",
     "pipe_run",
     "random_pipe_run",
     "sample_cylinder",
