@@ -242,6 +242,11 @@ def _scan_section(name: str, path: Path, clouds: int, seed: int) -> list[str]:
             + " | " + (f"{max(1000 * abs(r['axial']) for r in hit):.0f}" if hit else "-")
             + f" | {sum(r['found'] is not None for r in few)}/{len(few)} |"
         )  # fmt: skip
+    missed = [r for r in rows if r["found"] is None and r["points"] >= MIN_POINTS]
+    lines += ["", "Missed with 30 points or more: " + ("; ".join(
+        f"{r['defect'].kind} {1000 * r['defect'].depth:.1f} mm, {100 * r['defect'].width:.0f} cm "
+        f"wide at {r['defect'].axial:.2f} m, {r['defect'].clock:.0f} deg ({r['points']} points)"
+        for r in missed) or "none") + "."]  # fmt: skip
     lines += ["", "| joint | found within 2 cm | axial error, mm | read, mm |", "|---|---|---|---|"]
     for row in joint_rows:
         joint, found = row["joint"], row["found"]
@@ -272,7 +277,7 @@ def main(argv=None) -> int:
         f"Run {today} on {platform.machine()} with {os.cpu_count()} cores: `python "
         f"benchmarks/bench_real.py --clouds {args.clouds} --seed {args.seed}` "
         f"({(time.perf_counter() - started) / 60:.0f} min). "
-        + " ".join(__doc__.split("\n\n")[2].split()),
+        + " ".join(__doc__.split("\n\n")[3].split()),
         "",
         *lines,
     ])  # fmt: skip

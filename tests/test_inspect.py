@@ -3,6 +3,7 @@ against the truth the damaged-pipe generators record."""
 
 import csv
 import json
+import re
 from dataclasses import replace
 
 import numpy as np
@@ -868,6 +869,23 @@ def test_a_bulge_seen_at_grazing_incidence_is_fitted_to_its_depth_within_its_err
         inside += abs(read[-1] - depth) <= 1.96 * error
     assert abs(np.mean(read) - depth) < 3e-4  # metres
     assert inside >= 24
+
+
+def test_only_the_data_leave_a_stretch_not_judged_and_it_says_how_much_they_cover():
+    # A straight pipe whose points over 0.6 m (more than two radii) keep only a quarter
+    # of the circle: that stretch is not judged, with the coverage its points show; the
+    # rest, a 6 mm dent included, is.
+    defects = (Defect("dent", 0.5, 90.0, 0.006, 0.08),)
+    sample = damaged_pipe(60_000, noise=0.001, defects=defects, rng=4)
+    points = sample.points
+    angle = np.degrees(np.arctan2(points[:, 1], points[:, 0])) % 360.0
+    shadow = (points[:, 2] > 1.1) & (points[:, 2] < 1.7) & (angle > 90.0)
+    inspection = inspect_pipe(sample.truth_mesh(0.01), points[~shadow])
+    (stretch,) = inspection.pipe.unreliable
+    assert 1.0 < stretch.axial_start < 1.2 and 1.6 < stretch.axial_end < 1.8
+    assert re.search(r"cover [3-5] of 16 sectors", stretch.reason)
+    (dent,) = inspection.defects.defects
+    assert abs(dent.axial - 0.5) < 0.01 and abs(-dent.depth - 0.006) < 1e-3
 
 
 @pytest.mark.slow

@@ -421,7 +421,7 @@ def check_stations(pipe: Pipe, located, *, excused=()) -> tuple[Unreliable, ...]
                 f"too few points: {int(np.median(count))} a station of {step:.3g} m (median)"
                 if few
                 else f"the data do not go round the pipe: they cover {int(np.median(covered))} "
-                f"of {SECTORS} sectors of {360 // SECTORS} degrees (median over the stretch)"
+                f"of {SECTORS} sectors of {360 / SECTORS:g} degrees (median over the stretch)"
             )
     for start, end in excused:
         reason[(axial > start - step) & (axial < end + step)] = ""
@@ -561,7 +561,8 @@ def _straight_run(centres: np.ndarray, radius: float, stations=None) -> np.ndarr
     Without `stations` the two ends lie farthest apart: a tee's straight run rather than
     a turn into its branch. With the scanner's `stations` (S, 3), in the order the robot
     visited them, the run is the one the robot travelled: from the end beyond its first
-    station to the end beyond its last, passing by both.
+    station to the end beyond its last, passing by both. The path's ends are trimmed back
+    to cells holding a quarter of the median cell's points along it.
     """
     cell = 0.5 * radius
     key = np.floor(centres / cell).astype(np.int64)
@@ -569,7 +570,8 @@ def _straight_run(centres: np.ndarray, radius: float, stations=None) -> np.ndarr
     label = label.ravel()
     count = np.bincount(label)
     means = np.stack([np.bincount(label, centres[:, i]) for i in range(3)], 1) / count[:, None]
-    means = means[count >= max(3, 0.05 * np.median(count))]
+    held = count >= max(3, 0.05 * np.median(count))
+    means, count = means[held], count[held]
     if means.shape[0] < 3:
         raise InspectionError("the mesh does not span a pipe: its normals do not meet on an axis")
     pairs = cKDTree(means).query_pairs(2.0 * cell, output_type="ndarray")
@@ -598,6 +600,11 @@ def _straight_run(centres: np.ndarray, radius: float, stations=None) -> np.ndarr
     while before[node] >= 0:
         node = int(before[node])
         path.append(node)
+    # its ends back to cells a quarter as full as the run's: a rim's or a groove's stray
+    # points make sparse cells beside the axis, where the run would bend off at its ends
+    full = np.flatnonzero(count[path] >= 0.25 * np.median(count[path]))
+    if full.size >= 3:
+        path = path[full[0] : full[-1] + 1]
     if len(path) < 3:
         raise InspectionError(
             "the mesh is too short along its axis to fit a pipe to: it must be longer than a radius"

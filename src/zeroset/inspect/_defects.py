@@ -13,7 +13,7 @@ from ._centreline import Pipe
 from ._measure import Ovality
 from ._unrolled import WallMap
 
-__all__ = ["Branch", "Defect", "Defects", "find_defects", "smallest_depth"]
+__all__ = ["Branch", "Defect", "Defects", "dispersion", "find_defects", "smallest_depth"]
 
 #: Scan points: a cell is judged when its residual exceeds so many standard errors that
 #: noise alone would make this many regions beyond them over the whole wall, on average.
@@ -116,6 +116,10 @@ class Defects:
         Index into `defects` of each cell of the wall map, -1 for none.
     basis : str
         What the threshold came from, in words (with its figures in mm).
+    texture : float
+        How many times their standard errors the judged cells' residuals spread (robustly,
+        at least 1): the wall's own texture beyond the points' noise, which every cell's
+        error is taken times (see `find_defects`).
     """
 
     defects: tuple[Defect, ...]
@@ -124,6 +128,7 @@ class Defects:
     significance: float
     labels: np.ndarray
     basis: str = ""
+    texture: float = 1.0
 
     def __post_init__(self) -> None:
         self.labels.flags.writeable = False
@@ -146,7 +151,12 @@ def find_defects(
     section) exceeds z standard errors (`_significance`: z grows with the wall's area so that
     noise alone makes `FALSE_ALARMS` regions over the whole wall). The errors come from the
     points' own noise about the local wall (`WallMap.noise`), never from the map's
-    dispersion, which holds real geometry (joints, ovality, deposits). For a mesh's
+    deviations, which hold real geometry (joints, ovality, deposits), taken times the
+    wall's texture: the robust spread of the judged cells' residuals over their errors
+    (`dispersion`, at least 1). A real wall is no smooth section: concrete's texture of
+    half a millimetre leaves its cells spread twice their errors, and at z of those errors
+    a fifth of a real sewer pipe's wall would be "defects"; a median over the wall is not
+    moved by the few cells a defect takes. For a mesh's
     samples, `MESH_SIGNIFICANCE` robust deviations of the wall. Connected defective cells, all
     inward or all outward, make a region (the clock wraps round); regions smaller than
     `MIN_KERNELS` kernel areas are noise. Cells where the samples leave the wall outward
@@ -171,10 +181,11 @@ def find_defects(
     cell_axial = wall.axial_edges[1] - wall.axial_edges[0]
     cell_arc = np.radians(wall.clock_edges[1]) * pipe.radius
     judged, defined, skipped = _cells(wall, pipe, excluded)
-    error = np.where(judged, wall.error, np.inf)
-    significance, area, reported = _limit(wall, pipe, defined)
+    texture = _texture(wall, defined)
+    error = np.where(judged, texture * wall.error, np.inf)
+    significance, area, reported = _limit(wall, pipe, defined, texture)
     limit = significance * error
-    basis = _basis(wall, defined, significance, area, reported)
+    basis = _basis(wall, defined, significance, area, reported, texture)
     if threshold is not None:
         reported = float(threshold)
         basis = (
@@ -214,14 +225,40 @@ def find_defects(
     for rank, index in enumerate(order):
         labels[members[index]] = rank
     return Defects(
-        tuple(defects[i] for i in order), tuple(branches), reported, significance, labels, basis
+        tuple(defects[i] for i in order),
+        tuple(branches),
+        reported,
+        significance,
+        labels,
+        basis,
+        texture,
     )
 
 
 def smallest_depth(wall: WallMap, pipe: Pipe) -> float:
     """The threshold (m) `find_defects` reports on `wall` with nothing excluded: the
     smallest change of the wall the inspection tells from the noise there."""
-    return _limit(wall, pipe, _cells(wall, pipe, ())[1])[2]
+    defined = _cells(wall, pipe, ())[1]
+    return _limit(wall, pipe, defined, _texture(wall, defined))[2]
+
+
+def dispersion(standardized: np.ndarray) -> float:
+    """The robust spread of `standardized` values (residuals over their standard errors),
+    at least 1: how much the errors understate what the values really scatter by (a real
+    wall's texture, the centreline's and the sections' own errors, the scan's pattern).
+    Features are sparse (a defect takes a few cells, a joint a ring every metre or more),
+    so this median ignores them."""
+    finite = np.abs(standardized[np.isfinite(standardized)])
+    return max(1.4826 * float(np.median(finite)), 1.0) if finite.size else 1.0
+
+
+def _texture(wall: WallMap, defined: np.ndarray) -> float:
+    """The wall's texture (see `find_defects`): the `dispersion` of the `defined` cells'
+    residuals over their errors, for scan points; 1 for a mesh's samples, whose limit is
+    taken from the wall's spread itself (`MESH_SIGNIFICANCE`)."""
+    if not (wall.independent and defined.any()):
+        return 1.0
+    return dispersion(wall.residual[defined] / wall.error[defined])
 
 
 def _cells(wall: WallMap, pipe: Pipe, excluded) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -247,20 +284,26 @@ def _cells(wall: WallMap, pipe: Pipe, excluded) -> tuple[np.ndarray, np.ndarray,
     return judged, defined, skipped
 
 
-def _limit(wall: WallMap, pipe: Pipe, defined: np.ndarray) -> tuple[float, float, float]:
+def _limit(
+    wall: WallMap, pipe: Pipe, defined: np.ndarray, texture: float
+) -> tuple[float, float, float]:
     """The standard errors a cell needs (`_significance`, or `MESH_SIGNIFICANCE` on a
     mesh), the area judged (m^2) and the threshold (m): the median over the `defined`
-    cells of the residual they need."""
+    cells of the residual they need, their errors taken `texture` times."""
     cell_axial = wall.axial_edges[1] - wall.axial_edges[0]
     area = np.count_nonzero(defined) * cell_axial * np.radians(wall.clock_edges[1]) * pipe.radius
     significance = MESH_SIGNIFICANCE
     if wall.independent and defined.any():
         significance = _significance(area, wall.kernel)
-    reported = float(np.median(significance * wall.error[defined])) if defined.any() else 0.0
+    reported = (
+        float(np.median(significance * texture * wall.error[defined])) if defined.any() else 0.0
+    )
     return significance, area, reported
 
 
-def _basis(wall: WallMap, defined, significance: float, area: float, reported: float) -> str:
+def _basis(
+    wall: WallMap, defined, significance: float, area: float, reported: float, texture: float
+) -> str:
     """What the threshold `reported` (m) came from, in words with figures in mm."""
     if not defined.any():
         return "no cell of the wall is judged: too few samples, or all near an edge"
@@ -271,11 +314,18 @@ def _basis(wall: WallMap, defined, significance: float, area: float, reported: f
             f"{significance:.1f} x the mesh's roughness about the sections, {noise:.2f} mm "
             f"(no points given): {1000 * reported:.2f} mm"
         )
+    textured = ""
+    if texture > 1.0:
+        spread = 1000 * 1.4826 * float(np.median(np.abs(wall.residual[defined])))
+        textured = (
+            f", times {texture:.2f}, the wall's texture (its cells' residuals spread "
+            f"{texture:.2f} times their errors, {spread:.2f} mm about the sections)"
+        )
     return (
         f"{significance:.1f} standard errors (so that noise alone makes {FALSE_ALARMS} false "
         f"regions over the {area:.1f} m2 judged) of a cell's mean, {error:.2f} mm: the "
         f"points' noise about the local wall, {noise:.2f} mm, over the points in a cell "
-        f"(medians over the wall): {1000 * reported:.2f} mm"
+        f"(medians over the wall){textured}: {1000 * reported:.2f} mm"
     )
 
 

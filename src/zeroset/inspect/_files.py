@@ -189,6 +189,7 @@ def inspection_summary(inspection: Inspection) -> dict:
         one dict per `Unreliable` stretch; ``threshold``, the smallest depth judged a defect
         (metres), also as ``threshold_mm``, and ``threshold_basis``, what it came from, in
         words; ``significance``, the standard errors a cell's residual needed to count;
+        ``texture``, the wall's texture they were taken times (`Defects.texture`);
         ``stations``, the diameters and ovality ``(D_max - D_min) / D_nominal`` over the
         stations (`station_summary`, mm and %); ``defects``, one dict per `Defect`, deepest
         first, with its fields (metres, degrees, square metres, percent), its ``number``
@@ -209,6 +210,7 @@ def inspection_summary(inspection: Inspection) -> dict:
         "threshold_mm": 1000.0 * found.threshold,
         "threshold_basis": found.basis,
         "significance": found.significance,
+        "texture": found.texture,
         "stations": station_summary(inspection.ovality),
         "defects": [
             {

@@ -10,7 +10,7 @@ from scipy import ndimage, optimize, special
 
 from ._bump import FIT_EVALUATIONS, REACH, along_beams, at_most, bump, covariance, range_deviation
 from ._centreline import SECTORS, Pipe, station_fits
-from ._defects import BRANCH, MAX_BUMP_POINTS
+from ._defects import BRANCH, MAX_BUMP_POINTS, dispersion
 from ._frame import clock_angles
 from ._measure import Ovality
 from ._unrolled import OFF_WALL, WallMap
@@ -192,7 +192,7 @@ def _rings(pipe: Pipe, axial, clock, residual, blur, steps, wall: WallMap, whole
     error = wall.noise_along(start + step * (np.arange(n_rings) + 0.5)) / np.sqrt(
         np.maximum(count, 1)
     )
-    error *= _dispersion(excess / error)
+    error *= dispersion(excess / error)  # ring features are sparse along a run
     z = float(special.ndtri(1.0 - FALSE_ALARMS / (2.0 * n_rings)))
     rows, _ = wall.cells(start + step * (np.arange(n_rings) + 0.5), np.zeros(n_rings))
     strong = (np.abs(np.nan_to_num(excess)) > z * error) & (rows >= 0) & whole[rows]
@@ -469,15 +469,6 @@ def _halfway(along, centres, at: float, reach: float, q, direction) -> float:
     i = crossing[np.argmin(np.abs(along[near][crossing] - at))]
     t = (0.5 - share[i]) / (share[i + 1] - share[i])
     return float(along[near][i] + t * (along[near][i + 1] - along[near][i]))
-
-
-def _dispersion(standardized: np.ndarray) -> float:
-    """The robust spread of `standardized` values (residuals over their standard errors),
-    at least 1: how much the errors understate what the rings or sections really scatter
-    by (the centreline's and the sections' own errors, the scan's pattern). Ring features
-    are sparse along a run (a joint every metre or more), so this median ignores them."""
-    finite = np.abs(standardized[np.isfinite(standardized)])
-    return max(1.4826 * float(np.median(finite)), 1.0) if finite.size else 1.0
 
 
 def _running_median(values: np.ndarray, half: int) -> np.ndarray:
