@@ -561,8 +561,7 @@ def _straight_run(centres: np.ndarray, radius: float, stations=None) -> np.ndarr
     Without `stations` the two ends lie farthest apart: a tee's straight run rather than
     a turn into its branch. With the scanner's `stations` (S, 3), in the order the robot
     visited them, the run is the one the robot travelled: from the end beyond its first
-    station to the end beyond its last, passing by both. The path's ends are trimmed back
-    to cells holding a quarter of the median cell's points along it.
+    station to the end beyond its last, passing by both.
     """
     cell = 0.5 * radius
     key = np.floor(centres / cell).astype(np.int64)
@@ -570,8 +569,7 @@ def _straight_run(centres: np.ndarray, radius: float, stations=None) -> np.ndarr
     label = label.ravel()
     count = np.bincount(label)
     means = np.stack([np.bincount(label, centres[:, i]) for i in range(3)], 1) / count[:, None]
-    held = count >= max(3, 0.05 * np.median(count))
-    means, count = means[held], count[held]
+    means = means[count >= max(3, 0.05 * np.median(count))]
     if means.shape[0] < 3:
         raise InspectionError("the mesh does not span a pipe: its normals do not meet on an axis")
     pairs = cKDTree(means).query_pairs(2.0 * cell, output_type="ndarray")
@@ -600,11 +598,6 @@ def _straight_run(centres: np.ndarray, radius: float, stations=None) -> np.ndarr
     while before[node] >= 0:
         node = int(before[node])
         path.append(node)
-    # its ends back to cells a quarter as full as the run's: a rim's or a groove's stray
-    # points make sparse cells beside the axis, where the run would bend off at its ends
-    full = np.flatnonzero(count[path] >= 0.25 * np.median(count[path]))
-    if full.size >= 3:
-        path = path[full[0] : full[-1] + 1]
     if len(path) < 3:
         raise InspectionError(
             "the mesh is too short along its axis to fit a pipe to: it must be longer than a radius"

@@ -13,6 +13,10 @@ __all__ = ["Ovality", "deviation", "ovality"]
 
 #: Stations over which the sections' mean radius and ovality are running medians.
 WINDOW = 9
+#: Clocks round the pipe at which the section's uncertainty is taken before it is
+#: interpolated: linear interpolation of a second harmonic at 360 / 64 degrees is within
+#: 0.5 % of its amplitude.
+ERROR_CLOCKS = 64
 
 
 def deviation(pipe: Pipe, x) -> np.ndarray:
@@ -79,17 +83,35 @@ class Ovality:
 
     def section_error(self, axial, clock) -> np.ndarray:
         """(N,) how uncertain the section is at `axial` (m) and `clock` (degrees), metres:
-        the distance by which the station's own fit there departs from it (`scatter`),
-        interpolated between the stations that measured one; 0 where none did.
+        the running median over `WINDOW` stations of the distance by which each station's
+        own fit departs from the section at that clock (`scatter`), interpolated between
+        the stations and over `ERROR_CLOCKS` clocks round the pipe.
 
         Where the centreline cannot quite follow the wall (the start of a tight bend, a
         section seen from afar), neighbouring stations disagree by a millimetre or so, and
         the running medians smooth that over: a residual there is as uncertain as that. A
-        joint's stations are not judged. A dent a few times the points' noise deep moves its
-        own stations' fits, most at its clock, and so raises its own cells' error
-        (docs/inspection.md, "Limits").
+        dent a few times the points' noise deep moves its own stations' fits, most at its
+        clock; a median over the stations the section itself is a median over does not
+        follow those few, as the section does not, so a dent does not raise its own cells'
+        error and hide itself.
         """
-        return np.abs(_harmonics(axial, clock, self.axial, self.scatter, 0.0))
+        clocks = np.arange(ERROR_CLOCKS + 1) * (360.0 / ERROR_CLOCKS)  # the first again
+        own = np.abs(
+            _harmonics(self.axial[:, None], clocks[None, :], self.axial, self.scatter, 0.0)
+        )
+        typical = np.stack([_running_median(column) for column in own.T], axis=1)
+        axial, clock = np.broadcast_arrays(
+            np.asarray(axial, dtype=np.float64), np.mod(np.asarray(clock, dtype=np.float64), 360.0)
+        )
+        k = np.clip(np.searchsorted(self.axial, axial) - 1, 0, max(self.axial.size - 2, 0))
+        nxt = np.minimum(k + 1, self.axial.size - 1)
+        span = np.where(nxt > k, self.axial[nxt] - self.axial[k], 1.0)
+        u = np.clip((axial - self.axial[k]) / span, 0.0, 1.0)
+        j = np.minimum((clock / (360.0 / ERROR_CLOCKS)).astype(np.int64), ERROR_CLOCKS - 1)
+        v = clock / (360.0 / ERROR_CLOCKS) - j
+        return (1 - u) * ((1 - v) * typical[k, j] + v * typical[k, j + 1]) + u * (
+            (1 - v) * typical[nxt, j] + v * typical[nxt, j + 1]
+        )
 
 
 def ovality(pipe: Pipe, x, *, step: float | None = None, located=None) -> Ovality:
