@@ -89,28 +89,8 @@ def inject(points, pipe, *, defects=(), joints=(), viewpoints=None) -> tuple[np.
     truth = {
         "radius": pipe.radius,
         "clock_convention": CLOCK_CONVENTION,
-        "defects": [
-            {
-                "kind": d.kind,
-                "axial": d.axial,
-                "clock": d.clock,
-                "depth": d.depth,
-                "width": d.width,
-                "centre": pipe.position([d.axial], d.clock)[0].tolist(),
-            }
-            for d in defects
-        ],
-        "joints": [
-            {
-                "kind": j.kind,
-                "axial": j.axial,
-                "size": j.size,
-                "clock": j.clock,
-                "depth": j.depth,
-                "centre": pipe.position([j.axial], 0.0, distance=0.0)[0].tolist(),
-            }
-            for j in joints
-        ],
+        "defects": [d.record(pipe.position([d.axial], d.clock)[0]) for d in defects],
+        "joints": [j.record(pipe.position([j.axial], 0.0, 0.0)[0]) for j in joints],
         "moved": int(np.count_nonzero(np.abs(change) > 1e-6)),
     }
     return moved, truth

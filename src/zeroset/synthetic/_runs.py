@@ -224,17 +224,7 @@ def _record(kind: str, bore: Bore, tees: tuple[Tee, ...]) -> dict:
     }
     at = np.array([j.axial for j in wall.joints])
     joints = _rounded(path._evaluate(at).centre + wall.shift(at))
-    record["joints"] = [
-        {
-            "kind": j.kind,
-            "axial": j.axial,
-            "size": j.size,
-            "clock": j.clock,
-            "depth": j.depth,
-            "centre": joints[i].tolist(),
-        }
-        for i, j in enumerate(wall.joints)
-    ]
+    record["joints"] = [j.record(joints[i]) for i, j in enumerate(wall.joints)]
     record["tees"] = [
         {
             "axial": t.axial,

@@ -108,6 +108,17 @@ class Defect:
     def __post_init__(self) -> None:
         _settle(self, "defect", DEFECT_KINDS, ("depth", "width"))
 
+    def record(self, centre) -> dict:
+        """The JSON-able truth of the defect, with its `centre` (3,), a point of the wall."""
+        return {
+            "kind": self.kind,
+            "axial": self.axial,
+            "clock": self.clock,
+            "depth": self.depth,
+            "width": self.width,
+            "centre": np.asarray(centre, dtype=np.float64).tolist(),
+        }
+
 
 @dataclass(frozen=True)
 class Joint:
@@ -161,6 +172,17 @@ class Joint:
 
     def __post_init__(self) -> None:
         _settle(self, "joint", JOINT_KINDS, ("size", "depth"))
+
+    def record(self, centre) -> dict:
+        """The JSON-able truth of the joint, with its `centre` (3,) on the centreline."""
+        return {
+            "kind": self.kind,
+            "axial": self.axial,
+            "size": self.size,
+            "clock": self.clock,
+            "depth": self.depth,
+            "centre": np.asarray(centre, dtype=np.float64).tolist(),
+        }
 
 
 def _step(x: np.ndarray, width: float) -> tuple[np.ndarray, np.ndarray]:
@@ -467,17 +489,7 @@ class _Wall:
                 "span": list(self.span),
                 "taper": self.taper,
             },
-            "defects": [
-                {
-                    "kind": d.kind,
-                    "axial": d.axial,
-                    "clock": d.clock,
-                    "depth": d.depth,
-                    "width": d.width,
-                    "centre": centres[i].tolist(),
-                }
-                for i, d in enumerate(self.defects)
-            ],
+            "defects": [d.record(centres[i]) for i, d in enumerate(self.defects)],
         }
 
 
