@@ -246,10 +246,7 @@ def fit_pipe(
         sensors = np.broadcast_to(np.asarray(viewpoints, dtype=np.float64), np.shape(points))
         stations = _stations(sensors - shift, radius)
     axis = mesh.vertices[used] + towards_axis * radius * normals[used]
-    # A point pushed off the wall that lands near it is not on the axis: a rim's normal
-    # curls along the pipe, a groove's or a ring's tilts.
-    clear = cKDTree(mesh.vertices).query(axis, workers=query_workers())[0]
-    path = _straight_run(axis[clear > (1.0 - BRANCHED) * radius], radius, stations)
+    path = _straight_run(axis, radius, stations, wall=mesh.vertices)
     run = path[-1] - path[0]
     if stations is None and run[np.argmax(np.abs(run))] < 0:  # the largest component's way
         path = path[::-1]
@@ -555,8 +552,12 @@ def _mean_curvature(points: np.ndarray, normals: np.ndarray, reach: float) -> fl
     return curvature
 
 
-def _straight_run(centres: np.ndarray, radius: float, stations=None) -> np.ndarray:
+def _straight_run(centres: np.ndarray, radius: float, stations=None, wall=None) -> np.ndarray:
     """(K, 3) cell means of `centres` along their spanning tree, between two of its ends.
+
+    With the `wall` (W, 3), the positions the centres were pushed from, a cell whose mean
+    lies within 1 - `BRANCHED` radii of it is none of the axis's: a rim's normals curl
+    along the pipe and a groove's tilt, and their pushed points land beside the wall.
 
     Without `stations` the two ends lie farthest apart: a tee's straight run rather than
     a turn into its branch. With the scanner's `stations` (S, 3), in the order the robot
@@ -570,6 +571,9 @@ def _straight_run(centres: np.ndarray, radius: float, stations=None) -> np.ndarr
     count = np.bincount(label)
     means = np.stack([np.bincount(label, centres[:, i]) for i in range(3)], 1) / count[:, None]
     means = means[count >= max(3, 0.05 * np.median(count))]
+    if wall is not None and means.shape[0]:  # a few hundred cells: the wall's tree is quick
+        clear = cKDTree(wall).query(means, workers=query_workers())[0]
+        means = means[clear > (1.0 - BRANCHED) * radius]
     if means.shape[0] < 3:
         raise InspectionError("the mesh does not span a pipe: its normals do not meet on an axis")
     pairs = cKDTree(means).query_pairs(2.0 * cell, output_type="ndarray")
