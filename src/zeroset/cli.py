@@ -1354,8 +1354,9 @@ def _inject(args: argparse.Namespace, defects: list, joints: list) -> int:
     if args.mesh is not None:
         mesh = io.read_mesh(args.mesh)
     else:
-        mesh = reconstruct(cloud.points, viewpoints=cloud.viewpoints, progress=not args.quiet)
-        mesh = mesh.dense_mesh
+        mesh = reconstruct(  # the dense mesh, as the inspection fits it; no few triangles
+            cloud.points, viewpoints=cloud.viewpoints, tolerance=0.0, progress=not args.quiet
+        ).dense_mesh
     pipe = fit_pipe(mesh, cloud.points, viewpoints=cloud.viewpoints, up=args.up or UP)
     moved, truth = inject(
         cloud.points, pipe, defects=defects, joints=joints, viewpoints=cloud.viewpoints

@@ -4,8 +4,10 @@ from __future__ import annotations
 
 import warnings
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
+from scipy import interpolate
 
 from ._centreline import Pipe, section_fits
 
@@ -95,23 +97,26 @@ class Ovality:
         follow those few, as the section does not, so a dent does not raise its own cells'
         error and hide itself.
         """
-        clocks = np.arange(ERROR_CLOCKS + 1) * (360.0 / ERROR_CLOCKS)  # the first again
+        axial, clock = np.broadcast_arrays(
+            np.asarray(axial, dtype=np.float64), np.mod(np.asarray(clock, dtype=np.float64), 360.0)
+        )
+        inside = np.clip(axial, self.axial[0], self.axial[-1])
+        return self._error_table(np.stack([inside, clock], axis=-1)).reshape(axial.shape)
+
+    @cached_property
+    def _error_table(self) -> interpolate.RegularGridInterpolator:
+        """`section_error`'s running medians at the stations and `ERROR_CLOCKS` clocks (the
+        first again at 360 degrees), interpolated linearly."""
+        clocks = np.arange(ERROR_CLOCKS + 1) * (360.0 / ERROR_CLOCKS)
         own = np.abs(
             _harmonics(self.axial[:, None], clocks[None, :], self.axial, self.scatter, 0.0)
         )
         typical = np.stack([_running_median(column) for column in own.T], axis=1)
-        axial, clock = np.broadcast_arrays(
-            np.asarray(axial, dtype=np.float64), np.mod(np.asarray(clock, dtype=np.float64), 360.0)
-        )
-        k = np.clip(np.searchsorted(self.axial, axial) - 1, 0, max(self.axial.size - 2, 0))
-        nxt = np.minimum(k + 1, self.axial.size - 1)
-        span = np.where(nxt > k, self.axial[nxt] - self.axial[k], 1.0)
-        u = np.clip((axial - self.axial[k]) / span, 0.0, 1.0)
-        j = np.minimum((clock / (360.0 / ERROR_CLOCKS)).astype(np.int64), ERROR_CLOCKS - 1)
-        v = clock / (360.0 / ERROR_CLOCKS) - j
-        return (1 - u) * ((1 - v) * typical[k, j] + v * typical[k, j + 1]) + u * (
-            (1 - v) * typical[nxt, j] + v * typical[nxt, j + 1]
-        )
+        if self.axial.size == 1:  # one station: the same all along
+            return interpolate.RegularGridInterpolator(
+                (np.r_[self.axial, self.axial + 1.0], clocks), np.repeat(typical, 2, axis=0)
+            )
+        return interpolate.RegularGridInterpolator((self.axial, clocks), typical)
 
 
 def ovality(pipe: Pipe, x, *, step: float | None = None, located=None) -> Ovality:
